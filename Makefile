@@ -1,0 +1,40 @@
+# frictionuq: the two commands of the README.
+#   make demo   create .venv, install frictionuq, run the main job on the shipped data
+#   make test   create .venv, install frictionuq with its test extra, run the test suite
+# A Python >= 3.12 is found by tools/find-python (PATH, then pyenv's versions); override with
+#   make demo PYTHON=/path/to/python3.12
+SHELL := /bin/bash
+VENV ?= .venv
+PY := $(VENV)/bin/python
+PYTHON_FOUND = $(shell tools/find-python)
+
+.PHONY: demo test install install-test bench clean-venv
+
+demo: $(VENV)/.installed
+	$(VENV)/bin/frictionuq table data/brfd-arts-d2 --published brfd
+
+test: $(VENV)/.installed-test
+	$(PY) -m pytest
+
+bench: $(VENV)/.installed-test
+	$(PY) benchmarks/bench_simulator.py
+
+install: $(VENV)/.installed
+install-test: $(VENV)/.installed-test
+
+$(VENV)/.created:
+	@py="$(PYTHON_FOUND)"; [ -n "$$py" ] || exit 1; \
+	echo "using $$py ($$($$py --version))"; \
+	"$$py" -m venv $(VENV) && $(PY) -m pip install -q -U pip
+	@touch $@
+
+$(VENV)/.installed: $(VENV)/.created pyproject.toml
+	$(PY) -m pip install -q -e .
+	@touch $@
+
+$(VENV)/.installed-test: $(VENV)/.created pyproject.toml
+	$(PY) -m pip install -q -e ".[test]"
+	@touch $@ $(VENV)/.installed
+
+clean-venv:
+	rm -rf $(VENV)
