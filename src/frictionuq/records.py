@@ -1,0 +1,158 @@
+"""Readers of one test record: a CSV file or an ARTS-format JSON record (`.json`, `.json.gz`).
+
+Both return the raw columns in the file's own units; `frictionuq.campaign` converts to SI. Every
+problem raises `InputError` with one line naming the file, the line or key, and what is wrong.
+
+CSV: a header row, then one row per sample. Line numbers in messages are the file's own (the
+header is line 1), so `sed -n 7p file.csv` shows the offending row.
+
+ARTS JSON (ARTS Lab, `Dataset-Friction-Damper-with-Backlash`; see data/brfd-arts-*/README.md):
+an object with `data` (rows of `t [s]`, `x [in]`, `F friction force [kip]`, `v [in/s]`,
+`F_act1 [lb]`, `F_act2 [lb]`), `dt`, `sampling freq` and the unit keys `time units`,
+`displacement units`, `friction force units`, `actuator force units`. The measured applied force
+is |F_act1| + |F_act2| (spec section 7: only one band actuator is active at a time).
+"""
+from __future__ import annotations
+
+import gzip
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .errors import InputError
+
+MIN_SAMPLES = 10
+ARTS_UNIT_KEYS = {"time": "time units", "displacement": "displacement units",
+                  "force": "friction force units", "applied": "actuator force units"}
+ARTS_COLUMNS = 6
+
+
+def _numeric_column(path, df: pd.DataFrame, header: str, logical: str) -> np.ndarray:
+    """One column as float64; refuses text, empty cells, NaN and inf, naming the line."""
+    col = df[header]
+    num = pd.to_numeric(col, errors="coerce")
+    bad = num.isna() | ~np.isfinite(num.to_numpy(dtype=float, na_value=np.nan))
+    if bad.any():
+        i = int(np.flatnonzero(bad.to_numpy())[0])
+        raw = col.iloc[i]
+        if pd.isna(raw) or (isinstance(raw, str) and not raw.strip()):
+            what = "empty cell"
+        else:
+            try:
+                v = float(raw)
+                what = f"{raw!r} is not finite" if not np.isnan(v) else f"{raw!r} is NaN"
+            except (TypeError, ValueError):
+                what = f"{raw!r} is not a number"
+        raise InputError(f"{path}, line {i + 2}, column {header!r} ({logical}): {what}")
+    return num.to_numpy(dtype=float)
+
+
+def read_csv(path, columns: dict[str, str], optional: dict[str, str] | None = None
+             ) -> dict[str, np.ndarray]:
+    """Columns of a CSV file: `columns` maps a logical name (time, displacement, ...) to the
+    header to read; `optional` likewise for columns that may be absent. Extra columns are
+    ignored. Returns {logical: float64 array} (file units)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: file not found")
+    if path.stat().st_size == 0:
+        raise InputError(f"{path}: the file is empty")
+    try:
+        df = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
+    except pd.errors.EmptyDataError:
+        raise InputError(f"{path}: the file is empty") from None
+    except (pd.errors.ParserError, UnicodeDecodeError) as e:
+        raise InputError(f"{path}: not a readable CSV file ({' '.join(str(e).split())})") from None
+    df.columns = [str(c).strip() for c in df.columns]
+    out = {}
+    for logical, header in columns.items():
+        if header not in df.columns:
+            raise InputError(f"{path}: missing column {header!r} ({logical}); "
+                             f"the header has: {', '.join(map(repr, df.columns))}")
+    if len(df) < MIN_SAMPLES:
+        raise InputError(f"{path}: {len(df)} samples; a record needs at least {MIN_SAMPLES}")
+    for logical, header in columns.items():
+        out[logical] = _numeric_column(path, df, header, logical)
+    for logical, header in (optional or {}).items():
+        if header in df.columns:
+            out[logical] = _numeric_column(path, df, header, logical)
+    return out
+
+
+def check_time(path, t: np.ndarray, line_offset: int = 2, what: str = "line") -> None:
+    """Time must be strictly increasing; names the first offending line (or row)."""
+    bad = np.flatnonzero(np.diff(t) <= 0)
+    if bad.size:
+        k = int(bad[0]) + 1
+        raise InputError(f"{path}, {what} {k + line_offset}: time is not strictly increasing "
+                         f"({t[k - 1]:.10g} then {t[k]:.10g})")
+
+
+def _load_json(path: Path):
+    try:
+        opener = gzip.open if path.name.endswith(".gz") else open
+        with opener(path, "rt", encoding="utf-8") as f:
+            return json.load(f)
+    except (OSError, EOFError, UnicodeDecodeError) as e:
+        raise InputError(f"{path}: cannot read ({' '.join(str(e).split())})") from None
+    except json.JSONDecodeError as e:
+        raise InputError(f"{path}: not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})") from None
+
+
+def read_arts_json(path) -> tuple[dict[str, np.ndarray], dict[str, str], dict]:
+    """An ARTS-format JSON record -> (columns {time, displacement, force, applied} in the
+    record's units, the record's units {time, displacement, force, applied}, other metadata)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: file not found")
+    if path.stat().st_size == 0:
+        raise InputError(f"{path}: the file is empty")
+    d = _load_json(path)
+    if not isinstance(d, dict):
+        raise InputError(f"{path}: an ARTS record is a JSON object, got a {type(d).__name__}")
+    for key in ("data",) + tuple(ARTS_UNIT_KEYS.values()):
+        if key not in d:
+            raise InputError(f"{path}: missing key {key!r} of the ARTS record format")
+    units = {}
+    for logical, key in ARTS_UNIT_KEYS.items():
+        if not isinstance(d[key], str):
+            raise InputError(f"{path}, key {key!r}: expected a unit name, got {d[key]!r}")
+        units[logical] = d[key]
+    rows = d["data"]
+    if not isinstance(rows, list):
+        raise InputError(f"{path}, key 'data': expected a list of rows")
+    if len(rows) < MIN_SAMPLES:
+        raise InputError(f"{path}: {len(rows)} samples; a record needs at least {MIN_SAMPLES}")
+    try:
+        a = np.array(rows, dtype=float)
+    except (ValueError, TypeError):
+        a = None
+    if a is None or a.ndim != 2 or a.shape[1] != ARTS_COLUMNS:
+        for i, r in enumerate(rows):
+            if not isinstance(r, list) or len(r) != ARTS_COLUMNS:
+                raise InputError(f"{path}, key data, row {i}: expected {ARTS_COLUMNS} values "
+                                 "(t, x, F, v, F_act1, F_act2)")
+            for j, v in enumerate(r):
+                if isinstance(v, bool) or not isinstance(v, (int, float)):
+                    raise InputError(f"{path}, key data, row {i}, column {j}: {v!r} is not a number")
+        raise InputError(f"{path}, key data: rows are not numeric")  # pragma: no cover
+    names = ("t", "x", "F", "v", "F_act1", "F_act2")
+    fin = np.isfinite(a)
+    if not fin.all():
+        i, j = map(int, np.argwhere(~fin)[0])
+        raise InputError(f"{path}, key data, row {i}, column {names[j]}: {a[i, j]} is not finite")
+    cols = {"time": a[:, 0], "displacement": a[:, 1], "force": a[:, 2],
+            "applied": np.abs(a[:, 4]) + np.abs(a[:, 5])}
+    meta = {k: d[k] for k in ("dt", "sampling freq") if k in d}
+    if "dt" in d:
+        try:
+            dt = float(d["dt"])
+        except (TypeError, ValueError):
+            raise InputError(f"{path}, key 'dt': {d['dt']!r} is not a number") from None
+        med = float(np.median(np.diff(a[:, 0])))
+        if not (dt > 0 and abs(med - dt) <= 0.01 * dt):
+            raise InputError(f"{path}, key 'dt': {dt:g} contradicts the time column "
+                             f"(median step {med:g})")
+    return cols, units, meta

@@ -1,0 +1,61 @@
+"""`frictionuq simulate`: parameters from JSON, a displacement record from CSV, the force to CSV.
+
+P.json: {"fc_fwd": ..., ..., "w": ..., "effects": {"reversal_hump": {"a_hump": 0.3, ...}}}, the
+spec's SI names (likelihood-only `sigma_noise`, `force_offset` are accepted and ignored).
+X.csv: columns `time` (s), `displacement` (m), optionally `applied` (N or Pa, for the
+`applied_tracking` effect). F.csv: `time`, `displacement`, `force` (N), written atomically.
+"""
+from __future__ import annotations
+
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+
+from . import atomic
+from .errors import InputError
+from .model import simulate
+from .records import check_time, read_csv
+
+
+def read_params(path) -> tuple[dict, dict | None]:
+    """(base parameters, effects) from a parameter JSON file; errors name the file and key."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: file not found")
+    try:
+        doc = json.loads(path.read_text())
+    except json.JSONDecodeError as e:
+        raise InputError(f"{path}: not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not valid JSON (not UTF-8 text)") from None
+    if not isinstance(doc, dict):
+        raise InputError(f"{path}: expected a JSON object of parameter names and values")
+    effects = doc.pop("effects", None)
+    if effects is not None and not (isinstance(effects, dict)
+                                    and all(isinstance(v, dict) for v in effects.values())):
+        raise InputError(f"{path}, key effects: expected {{effect name: {{parameter: value}}}}")
+    for k, v in doc.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise InputError(f"{path}, key {k}: expected a number, got {v!r}")
+    return doc, effects
+
+
+def simulate_files(params_path, input_path, out_path, model: str = "three_stage", eps: float = 0.0) -> int:
+    """Simulate the force for the record in `input_path`; write `out_path`. Returns the sample count."""
+    params, effects = read_params(params_path)
+    cols = read_csv(input_path, {"time": "time", "displacement": "displacement"}, {"applied": "applied"})
+    check_time(input_path, cols["time"])
+    try:
+        F = simulate(cols["time"], cols["displacement"], params, effects=effects, model=model,
+                     eps=eps, applied=cols.get("applied"))
+    except InputError:
+        raise
+    except ValueError as e:
+        raise InputError(f"{params_path}: {e}") from None
+    buf = io.StringIO()
+    np.savetxt(buf, np.column_stack([cols["time"], cols["displacement"], F]), fmt="%.12g",
+               delimiter=",", header="time,displacement,force", comments="")
+    atomic.write_text(out_path, buf.getvalue())
+    return int(F.size)

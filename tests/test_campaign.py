@@ -1,0 +1,277 @@
+"""Campaign loading and `frictionuq ingest`: SI conversion, ARTS JSON records, and every kind of
+bad input refused with exit code 2, one line naming the file and row/key, and --out untouched."""
+import gzip
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import frictionuq as fq
+from frictionuq import units as U
+from frictionuq.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+TOML = """name = "mini"
+device = "test rig"
+[units]
+time = "{time}"
+displacement = "{disp}"
+force = "{force}"
+applied = "{applied}"
+{extra}
+[[tests]]
+id = "h1"
+file = "tests/h1.csv"
+applied = 10
+kind = "harmonic"
+frequency_hz = 0.5
+
+[[tests]]
+id = "h2"
+file = "tests/h2.csv"
+applied = 20
+"""
+
+
+def _csv(n=50, scale=1.0, applied=True, header="time,displacement,force"):
+    t = np.arange(n) * 0.01
+    x = 10 * np.sin(2 * np.pi * 0.5 * t)
+    f = scale * np.cos(2 * np.pi * 0.5 * t)
+    cols = [t, x, f]
+    if applied:
+        header += ",applied"
+        cols.append(np.full(n, 10.0))
+    lines = [header] + [",".join(f"{v:.10g}" for v in row) for row in zip(*cols)]
+    return "\n".join(lines) + "\n"
+
+
+def make_campaign(root: Path, time="s", disp="mm", force="kN", applied="N", extra="", files=None):
+    root.mkdir(parents=True, exist_ok=True)
+    (root / "tests").mkdir(exist_ok=True)
+    (root / "campaign.toml").write_text(TOML.format(time=time, disp=disp, force=force,
+                                                     applied=applied, extra=extra))
+    files = files or {}
+    for name in ("h1", "h2"):
+        (root / "tests" / f"{name}.csv").write_text(files.get(name, _csv()))
+    return root
+
+
+def run_cli(argv, capsys):
+    code = main(argv)
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def snapshot(folder: Path) -> dict:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+# ----------------------------------------------------------------------------- good input
+
+def test_load_converts_to_si(tmp_path):
+    camp = fq.load_campaign(make_campaign(tmp_path / "c", time="ms", disp="in", force="kip", applied="psi"))
+    t1 = camp.test("h1")
+    raw = np.loadtxt(tmp_path / "c/tests/h1.csv", delimiter=",", skiprows=1)
+    np.testing.assert_allclose(t1.record.t, raw[:, 0] * 1e-3)
+    np.testing.assert_allclose(t1.record.x, raw[:, 1] * 0.0254)
+    np.testing.assert_allclose(t1.record.force, raw[:, 2] * 4448.2216152605)
+    np.testing.assert_allclose(t1.record.applied, raw[:, 3] * 6894.757293168361)
+    assert t1.applied == pytest.approx(10 * 6894.757293168361)
+    assert camp.applied_si_unit == "Pa"
+    assert t1.kind == "harmonic" and t1.frequency_hz == 0.5
+    assert camp.test("h2").kind == "other"
+    assert len(t1.sha256) == 64
+
+
+def test_columns_mapping(tmp_path):
+    hdr = "Time (sec),Axial Displacement (in),Axial Force (kip)"
+    extra = '[columns]\ntime = "Time (sec)"\ndisplacement = "Axial Displacement (in)"\nforce = "Axial Force (kip)"\n'
+    c = make_campaign(tmp_path / "c", extra=extra,
+                      files={"h1": _csv(header=hdr, applied=False), "h2": _csv(header=hdr, applied=False)})
+    camp = fq.load_campaign(c)
+    assert camp.test("h1").record.applied is None
+    assert camp.test("h2").record.n == 50
+
+
+def test_ingest_round_trip(tmp_path, capsys):
+    c = make_campaign(tmp_path / "c")
+    out = tmp_path / "out"
+    code, so, se = run_cli(["ingest", str(c), "--out", str(out)], capsys)
+    assert code == 0, se
+    m = json.loads((out / "manifest.json").read_text())
+    assert m["package_version"] == fq.__version__
+    assert m["units"] == {"time": "s", "displacement": "m", "force": "N", "applied": "N"}
+    assert [t["id"] for t in m["tests"]] == ["h1", "h2"]
+    assert all(len(t["source_sha256"]) == 64 for t in m["tests"])
+    a = fq.load_campaign(c)
+    b = fq.load_campaign(out)
+    assert b.ingested
+    for ta, tb in zip(a.tests, b.tests):
+        for k in ("t", "x", "force", "applied"):
+            np.testing.assert_allclose(getattr(tb.record, k), getattr(ta.record, k), rtol=1e-9)
+        assert ta.applied == pytest.approx(tb.applied)
+    # a corrupted file of the ingested folder is detected by its hash
+    f = out / "tests/h1.csv"
+    f.write_text(f.read_text().replace("0.01,", "0.011,", 1))
+    with pytest.raises(ValueError, match="SHA-256"):
+        fq.load_campaign(out)
+
+
+def _arts_json(n=40, units=None, applied=(50.0, -30.0)):
+    t = np.arange(n) / 1024
+    rows = [[float(tt), 0.5 * np.sin(tt * 6), 0.1 * np.cos(tt * 6), 0.0, applied[0] * (i % 2),
+             applied[1] * ((i + 1) % 2)] for i, tt in enumerate(t)]
+    d = {"data": rows, "dt": 1 / 1024, "sampling freq": 1024, "displacement units": "in",
+         "time units": "s", "friction force units": "kip", "actuator force units": "lb"}
+    d.update(units or {})
+    return d
+
+
+def make_arts_campaign(root: Path, doc=None, gz=True, units_applied="lb"):
+    root.mkdir(parents=True, exist_ok=True)
+    name = "r.json.gz" if gz else "r.json"
+    data = json.dumps(doc if doc is not None else _arts_json()).encode()
+    (root / name).write_bytes(gzip.compress(data) if gz else data)
+    (root / "campaign.toml").write_text(
+        f'name = "arts"\n[units]\ntime = "s"\ndisplacement = "in"\nforce = "kip"\napplied = "{units_applied}"\n'
+        f'[[tests]]\nid = "r"\nfile = "{name}"\napplied = 36\nkind = "harmonic"\nfrequency_hz = 1\n')
+    return root
+
+
+@pytest.mark.parametrize("gz", [True, False])
+def test_arts_json_record(tmp_path, gz):
+    camp = fq.load_campaign(make_arts_campaign(tmp_path / "a", gz=gz))
+    r = camp.tests[0].record
+    d = _arts_json()
+    a = np.array(d["data"])
+    np.testing.assert_allclose(r.x, a[:, 1] * U.INCH)
+    np.testing.assert_allclose(r.force, a[:, 2] * 1e3 * U.LBF)
+    # measured applied force: |F_act1| + |F_act2|, lb -> N
+    np.testing.assert_allclose(r.applied, (np.abs(a[:, 4]) + np.abs(a[:, 5])) * U.LBF)
+    assert camp.tests[0].applied == pytest.approx(36 * U.LBF)
+
+
+# ----------------------------------------------------------------------------- bad input
+
+def _bad_cases():
+    """(name, builder(root) -> campaign path, expected message fragments)."""
+    def csv_with(cell_row, col, value):
+        lines = _csv().splitlines()
+        cells = lines[cell_row].split(",")
+        cells[col] = value
+        lines[cell_row] = ",".join(cells)
+        return "\n".join(lines) + "\n"
+
+    def toml_edit(old, new):
+        def b(r):
+            c = make_campaign(r)
+            p = c / "campaign.toml"
+            p.write_text(p.read_text().replace(old, new, 1))
+            return c
+        return b
+
+    def file_case(content):
+        return lambda r: make_campaign(r, files={"h2": content})
+
+    def no_toml(r):
+        c = make_campaign(r)
+        (c / "campaign.toml").unlink()
+        return c
+
+    def arts(doc=None, units_applied="lb"):
+        return lambda r: make_arts_campaign(r, doc=doc, units_applied=units_applied)
+
+    return [
+        ("missing campaign.toml", no_toml, ["campaign.toml", "missing"]),
+        ("unparsable toml", toml_edit('name = "mini"', 'name = "mini'), ["campaign.toml", "not valid TOML"]),
+        ("wrong type", toml_edit("applied = 20", 'applied = "twenty"'), ["tests[1]", "applied", "expected a number"]),
+        ("missing key", toml_edit('file = "tests/h2.csv"', ""), ["tests[1]", "missing key 'file'"]),
+        ("unknown key", toml_edit("kind = ", "knd = "), ["tests[0]", "unknown key 'knd'"]),
+        ("bad kind", toml_edit('kind = "harmonic"', 'kind = "sine"'), ["tests[0]", "kind", "'sine'"]),
+        ("missing file", toml_edit("tests/h2.csv", "tests/nope.csv"), ["tests[1]", "nope.csv", "not found"]),
+        ("missing column", file_case(_csv(header="time,disp,force")), ["h2.csv", "missing column 'displacement'"]),
+        ("non-numeric cell", file_case(csv_with(7, 2, "abc")), ["h2.csv", "line 8", "force", "'abc' is not a number"]),
+        ("empty cell", file_case(csv_with(5, 1, "")), ["h2.csv", "line 6", "displacement", "empty cell"]),
+        ("NaN", file_case(csv_with(9, 2, "nan")), ["h2.csv", "line 10", "NaN"]),
+        ("inf", file_case(csv_with(11, 1, "inf")), ["h2.csv", "line 12", "not finite"]),
+        ("time not increasing", file_case(csv_with(20, 0, "0.05")), ["h2.csv", "line 21", "not strictly increasing"]),
+        ("duplicated id", toml_edit('id = "h2"', 'id = "h1"'), ["tests[1]", "duplicated test id 'h1'"]),
+        ("unknown unit", toml_edit('force = "kN"', 'force = "tonnes"'), ["units.force", "'tonnes'"]),
+        ("too few samples", file_case(_csv(n=9)), ["h2.csv", "9 samples", "at least 10"]),
+        ("empty file", file_case(""), ["h2.csv", "empty"]),
+        ("json unit contradicts", arts(_arts_json(units={"displacement units": "mm"})),
+         ["r.json.gz", "displacement unit 'mm'", "units.displacement = 'in'"]),
+        ("json applied unit contradicts", arts(units_applied="psi"), ["r.json.gz", "applied unit 'lb'", "'psi'"]),
+        ("json too few samples", arts(_arts_json(n=5)), ["r.json.gz", "5 samples"]),
+        ("json non-numeric", arts({**_arts_json(), "data": _arts_json()["data"][:20] + [[0.1, "x", 0, 0, 0, 0]] * 3}),
+         ["r.json.gz", "row 20", "'x' is not a number"]),
+        ("json missing key", arts({k: v for k, v in _arts_json().items() if k != "time units"}),
+         ["r.json.gz", "missing key 'time units'"]),
+    ]
+
+
+@pytest.mark.parametrize("name,build,fragments", _bad_cases(), ids=[c[0] for c in _bad_cases()])
+def test_bad_input_refused(tmp_path, capsys, name, build, fragments):
+    camp = build(tmp_path / "camp")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "manifest.json").write_text('{"format": "frictionuq-ingested/1", "keep": true}')
+    (out / "tests").mkdir()
+    (out / "tests" / "old.csv").write_text("previous output\n")
+    before = snapshot(out)
+    code, so, se = run_cli(["ingest", str(camp), "--out", str(out)], capsys)
+    assert code == 2
+    lines = se.strip().splitlines()
+    assert len(lines) == 1, se
+    assert lines[0].startswith("frictionuq: error: ")
+    for frag in fragments:
+        assert frag in lines[0], (frag, lines[0])
+    assert "Traceback" not in se
+    assert snapshot(out) == before              # nothing lost or half-written
+    assert sorted(p.name for p in out.parent.iterdir()) == ["camp", "out"]   # no temp leftovers
+
+
+def test_refuses_to_replace_foreign_folder(tmp_path, capsys):
+    c = make_campaign(tmp_path / "c")
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "notes.txt").write_text("precious")
+    code, _, se = run_cli(["ingest", str(c), "--out", str(out)], capsys)
+    assert code == 2 and "not empty" in se
+    assert (out / "notes.txt").read_text() == "precious"
+
+
+def test_console_script_error_has_no_traceback(tmp_path):
+    """The installed entry point prints one line and exits 2 (not only main())."""
+    exe = Path(sys.executable).with_name("frictionuq")
+    r = subprocess.run([str(exe), "ingest", str(tmp_path / "nothing"), "--out", str(tmp_path / "o")],
+                       capture_output=True, text=True)
+    assert r.returncode == 2
+    assert r.stderr.count("\n") == 1 and "nothing" in r.stderr and "Traceback" not in r.stderr
+
+
+# ----------------------------------------------------------------------------- shipped real data
+
+@pytest.mark.parametrize("name,n_tests", [("brfd-arts-d1", 12), ("brfd-arts-d2", 17)])
+def test_shipped_arts_campaigns(name, n_tests):
+    camp = fq.load_campaign(ROOT / "data" / name)
+    assert len(camp.tests) == n_tests
+    assert camp.units == {"time": "s", "displacement": "in", "force": "kip", "applied": "lb"}
+    readme = (ROOT / "data" / name / "README.md").read_text()
+    assert "CC BY-SA 4.0" in readme
+    for te in camp.tests:
+        r = te.record
+        assert r.rate_hz == pytest.approx(1024.0)
+        assert r.applied is not None and np.all(r.applied >= 0)
+        assert 5e-3 < np.ptp(r.x) < 0.1                 # tens of mm of stroke
+        assert 1e3 < np.ptp(r.force) < 6e4               # kN-scale friction force
+        # the shipped file is the upstream file, gzip-compressed unchanged
+        raw = gzip.open(camp.path / te.file).read()
+        import hashlib
+        assert hashlib.sha256(raw).hexdigest() in readme
+    levels_lb = sorted({round(U.from_si(t.applied, "applied", "lb")) for t in camp.tests})
+    assert levels_lb == ([20, 22, 25, 35, 70, 80] if name.endswith("d1") else [0, 36])
