@@ -11,7 +11,8 @@ PYTHON_FOUND = $(shell tools/find-python)
 .PHONY: demo test install install-test bench clean-venv
 
 demo: $(VENV)/.installed
-	$(VENV)/bin/frictionuq table data/brfd-arts-d2 --published brfd
+	$(VENV)/bin/frictionuq ingest data/brfd-arts-d2 --out out/brfd-arts-d2
+	$(VENV)/bin/frictionuq table out/brfd-arts-d2 --published brfd
 
 test: $(VENV)/.installed-test
 	$(PY) -m pytest

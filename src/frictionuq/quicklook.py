@@ -76,11 +76,14 @@ def campaign_frame(path, published: str = "none", eps="auto") -> tuple[pd.DataFr
 def campaign_table(path, published: str = "none", eps="auto") -> str:
     """The table as text, with a header line naming the campaign and units."""
     df, camp = campaign_frame(path, published, eps)
-    head = (f"campaign {camp.name!r}: {len(camp.tests)} tests, device {camp.device or '?'}; "
+    from . import __version__
+    head = (f"frictionuq {__version__} | campaign {camp.name!r}: {len(camp.tests)} tests, device {camp.device or '?'}; "
             f"source units {camp.units}; values below in the units of each column header")
     note = ""
     if published and published != "none":
         note = ("\nRMSE/NRMSE: published model at the nearest published level, after removing the mean "
-                "residual (force offset); NRMSE = RMSE / std of the measured force.")
+                "residual (force offset); NRMSE = RMSE / std of the measured force. The published "
+                "parameters are the paper's own prototype tests; calibrating them to these records "
+                "is the next stage (Bayesian calibration).")
     with pd.option_context("display.width", 250, "display.max_columns", 40, "display.max_rows", 500):
         return head + "\n" + df.to_string(index=False, float_format=lambda v: f"{v:.4g}") + note
