@@ -180,6 +180,9 @@ def simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, F):
     F_r = 0.0
     z = 0.0
     E = 0.0
+    # z is released to evolve freely once s has reached s_free after a reversal, and stays
+    # released until the next reversal (with eps > 0, s can fall back inside the dead band)
+    released = not backlash
 
     for k in range(n):
         xk = x[k]
@@ -192,6 +195,7 @@ def simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, F):
                 F_r = F[k - 1]
                 d = -d
                 x_ext = xk
+                released = not backlash
         vk = v[k]
         vabs = abs(vk)
         # -- multiplicative factors on g at this sample (the rate factor depends on the velocity)
@@ -212,6 +216,8 @@ def simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, F):
         s = d * (xk - x_r)
         if s < 0.0:
             s = 0.0
+        if s >= s_free:
+            released = True
 
         # -- g of the sample velocity's direction (d when v == 0), and a(v) = s0|v|/g
         fwd = vk > 0.0 or (vk == 0.0 and d > 0.0)
@@ -246,12 +252,14 @@ def simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, F):
             q = s - sp2
             if q < 0.0:
                 q = 0.0
+            elif q > d2:       # q <= d2 exactly; the subtraction's rounding can exceed it
+                q = d2
             if use_p2:
                 L = k2 * d2 * (q / d2) ** p2 + k3 * sp2
             else:
                 L = k2 * q + k3 * sp2
             Fb = L if L < gd else gd
-            if backlash and s < s_free:
+            if not released:
                 z = d * Fb * inv_s0
             if gv > 0.0:
                 F1 = s0 * z + s1 * (vk - av * z) + s2 * vk

@@ -162,7 +162,8 @@ def simulate_batch(t, x, matrix, model: str = "three_stage", eps: float = 0.0, a
                 i = int(np.flatnonzero(bad)[0])
                 P.check_value(name, col[i])   # raises with the message
     drive = t if isinstance(t, Drive) else prepare(t, x, applied)
-    if check and drive.applied.size == 0 and np.any(M[:, P.INDEX["beta_app"]] != 0):
+    # always checked (one column): the kernel would otherwise silently turn the effect off
+    if drive.applied.size == 0 and np.any(M[:, P.INDEX["beta_app"]] != 0):
         raise ValueError("effect 'applied_tracking' needs the record's measured applied-force signal")
     if parallel is None:
         parallel = M.shape[0] > 1 and M.shape[0] * drive.n >= _PARALLEL_MIN_WORK and (os.cpu_count() or 1) > 1
