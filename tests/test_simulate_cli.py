@@ -36,6 +36,9 @@ def test_simulate_matches_library(files, capsys, model):
     np.testing.assert_allclose(out[:, 0], t)
     np.testing.assert_allclose(out[:, 2], ref, rtol=1e-11, atol=1e-9)
     assert "2000 samples" in capsys.readouterr().out
+    meta = json.loads(F.with_name("F.csv.json").read_text())
+    assert meta["package_version"] == fq.__version__ and meta["model"] == model and meta["eps_m"] == 1e-6
+    assert meta["effects"]["applied_tracking"] == {"beta_app": 0.8} and len(meta["input_sha256"]) == 64
 
 
 def _edit(P, **changes):

@@ -3,7 +3,9 @@
 P.json: {"fc_fwd": ..., ..., "w": ..., "effects": {"reversal_hump": {"a_hump": 0.3, ...}}}, the
 spec's SI names (likelihood-only `sigma_noise`, `force_offset` are accepted and ignored).
 X.csv: columns `time` (s), `displacement` (m), optionally `applied` (N or Pa, for the
-`applied_tracking` effect). F.csv: `time`, `displacement`, `force` (N), written atomically.
+`applied_tracking` effect). F.csv: `time`, `displacement`, `force` (N), written atomically,
+with a provenance sidecar `F.csv.json` (package version, model, eps, parameters, effects and the
+SHA-256 of both inputs).
 """
 from __future__ import annotations
 
@@ -57,5 +59,13 @@ def simulate_files(params_path, input_path, out_path, model: str = "three_stage"
     buf = io.StringIO()
     np.savetxt(buf, np.column_stack([cols["time"], cols["displacement"], F]), fmt="%.12g",
                delimiter=",", header="time,displacement,force", comments="")
+    from . import __version__
+    from .campaign import sha256_file
+    atomic.write_json(f"{out_path}.json", {
+        "package_version": __version__, "command": "simulate", "model": model, "eps_m": eps,
+        "parameters": params, "effects": effects or {},
+        "params_file": str(params_path), "params_sha256": sha256_file(params_path),
+        "input_file": str(input_path), "input_sha256": sha256_file(input_path),
+        "samples": int(F.size), "units": {"time": "s", "displacement": "m", "force": "N"}})
     atomic.write_text(out_path, buf.getvalue())
     return int(F.size)
