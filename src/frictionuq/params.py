@@ -51,6 +51,8 @@ _BASE = [
 _LIKELIHOOD = [
     Param("sigma_noise", "N", 1e-6, 1e7, "measurement-noise scale", kind="likelihood", log_scale=True),
     Param("force_offset", "N", -1e7, 1e7, "constant zero offset of the measured force", kind="likelihood"),
+    Param("noise_phi", "1", 0.0, 0.999, "lag-1 autocorrelation of AR(1) measurement noise "
+          "(sigma_noise is then the marginal sd)", kind="likelihood"),
 ]
 
 _EFFECT_PARAMS = [

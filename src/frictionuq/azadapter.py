@@ -1,0 +1,105 @@
+"""The one module that calls ArviZ (1.x: arviz_base, arviz_stats, arviz_plots).
+
+Everything else in frictionuq passes plain numpy arrays here and gets xarray DataTrees, pandas
+tables or figures back, so an ArviZ API change touches this file only. ArviZ is imported lazily
+(about 3 s) inside the functions.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+
+def build(posterior: dict, *, sample_stats: dict | None = None, log_likelihood: dict | None = None,
+          observed_data: dict | None = None, posterior_predictive: dict | None = None,
+          constant_data: dict | None = None, dims: dict | None = None, coords: dict | None = None,
+          attrs: dict | None = None):
+    """DataTree from arrays shaped (chain, draw, ...) (observed/constant data without them)."""
+    import arviz_base as azb
+    groups = {"posterior": posterior}
+    for name, g in (("sample_stats", sample_stats), ("log_likelihood", log_likelihood),
+                    ("observed_data", observed_data), ("posterior_predictive", posterior_predictive),
+                    ("constant_data", constant_data)):
+        if g:
+            groups[name] = g
+    dt = azb.from_dict(groups, dims=dims or {}, coords=coords or {})
+    for k, v in (attrs or {}).items():
+        dt.attrs[k] = v if isinstance(v, (str, int, float)) else str(v)
+        dt["posterior"].attrs[k] = dt.attrs[k]
+    return dt
+
+
+def save(dt, path) -> Path:
+    """Write a DataTree to netCDF atomically (temporary file, then rename)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        dt.to_netcdf(tmp, engine="h5netcdf")
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def load(path):
+    import xarray as xr
+    return xr.open_datatree(str(path), engine="h5netcdf").load()
+
+
+def summary(dt, var_names=None):
+    """Per-parameter table: mean, sd, q2.5, q97.5, r_hat, ess_bulk, ess_tail (raw floats)."""
+    import arviz_stats as azs
+    s = azs.summary(dt, var_names=var_names, kind="all", round_to="none", ci_prob=0.95, ci_kind="eti")
+    lb = [c for c in s.columns if c.endswith("_lb")][0]
+    ub = [c for c in s.columns if c.endswith("_ub")][0]
+    s = s.rename(columns={lb: "q2.5", ub: "q97.5"})
+    return s[["mean", "sd", "q2.5", "q97.5", "r_hat", "ess_bulk", "ess_tail"]]
+
+
+def diagnostics(samples: np.ndarray) -> dict:
+    """R-hat (rank-normalised, split) and bulk/tail ESS of samples shaped (chain, draw, param)."""
+    from arviz_stats.base import array_stats
+    a = np.moveaxis(np.asarray(samples, float), 2, 0)          # (param, chain, draw)
+    return {"r_hat": np.asarray(array_stats.rhat(a, chain_axis=-2, draw_axis=-1)),
+            "ess_bulk": np.asarray(array_stats.ess(a, chain_axis=-2, draw_axis=-1, method="bulk")),
+            "ess_tail": np.asarray(array_stats.ess(a, chain_axis=-2, draw_axis=-1, method="tail",
+                                                   prob=(0.05, 0.95)))}
+
+
+def psis_loo_units(log_lik: np.ndarray):
+    """PSIS-LOO over units (e.g. whole tests): log_lik (chain, draw, unit) -> (elpd per unit,
+    pareto k per unit). Used to screen before exact refits; see infer.compare."""
+    import arviz_base as azb
+    import arviz_stats as azs
+    dt = azb.from_dict({"posterior": {"_": np.zeros(log_lik.shape[:2])},
+                        "log_likelihood": {"y": log_lik}}, dims={"y": ["unit"]})
+    res = azs.loo(dt, pointwise=True)
+    return np.asarray(res.elpd_i).ravel(), np.asarray(res.pareto_k).ravel()
+
+
+def _plot_few_chains(kind: str, dt, var_names, path, max_chains: int):
+    """An arviz_plots figure of the first `max_chains` chains (emcee walkers are many; all of
+    them crowd the plot), saved to `path`."""
+    import arviz_plots as azp
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    sub = dt.sel(chain=slice(0, max_chains))
+    pc = getattr(azp, kind)(sub, var_names=var_names, backend="matplotlib")
+    pc.savefig(str(path))
+    plt.close("all")
+    return path
+
+
+def rank_plot(dt, var_names, path, max_chains: int = 8):
+    return _plot_few_chains("plot_rank", dt, var_names, path, max_chains)
+
+
+def trace_plot(dt, var_names, path, max_chains: int = 8):
+    return _plot_few_chains("plot_trace", dt, var_names, path, max_chains)

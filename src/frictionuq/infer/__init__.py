@@ -1,0 +1,1 @@
+"""Inference: priors, likelihood, sampler controller and fits (PINTS-style separate pieces)."""

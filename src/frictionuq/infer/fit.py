@@ -1,0 +1,185 @@
+"""Fits: per test or per applied force (one joint posterior over all tests at that force), with
+their outputs: an ArviZ netCDF per fit and the campaign's summary.json.
+
+Layout of an output folder:
+    summary.json                  {"package_version", "campaign", "fits": [...]} (SI units)
+    <fit id>/chain.h5             emcee HDF5 backend (resumable)
+    <fit id>/posterior.nc         ArviZ DataTree: posterior, sample_stats, observed_data,
+                                  log_likelihood (per test), posterior_predictive
+    <fit id>/fit.json             configuration, priors, seed, MAP, sampler record, convergence
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .. import atomic, params as P
+from ..errors import InputError
+from ..units import from_si
+from .likelihood import LogPosterior, records_from_tests
+from .priors import apply_overrides, default_priors, record_scales
+from .sampler import SamplerConfig, sample
+from .space import Space
+
+CONVERGENCE = {"r_hat_max": 1.01, "ess_min": 400}
+
+
+@dataclass
+class FitConfig:
+    model: str = "three_stage"
+    effects: tuple[str, ...] = ()
+    likelihood: str = "ar1"
+    priors: dict = field(default_factory=dict)     # overrides; a number fixes the parameter
+    samples_per_cycle: float = 400.0
+    eps: float | str = "auto"
+    kinds: tuple[str, ...] | None = None           # only tests of these kinds
+    tests: tuple[str, ...] | None = None           # only these test ids
+    sampler: SamplerConfig = field(default_factory=SamplerConfig)
+    seed: int = 1
+    n_predictive: int = 200
+
+    def to_json(self) -> dict:
+        d = asdict(self)
+        d["sampler"] = self.sampler.to_json()
+        return d
+
+
+@dataclass
+class FitSpec:
+    id: str
+    tests: list
+    applied: float | None           # SI (N or Pa), None for a mixed group
+    config: FitConfig
+
+
+def jsonable(obj):
+    """obj with numpy scalars and arrays (e.g. the HDF5 backend's np.int64 step counts) turned
+    into plain Python numbers and lists, so that json can write it."""
+    if isinstance(obj, dict):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return jsonable(obj.tolist())
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.floating):
+        return float(obj)
+    return obj
+
+
+def _fmt_applied(value_si: float, unit: str) -> str:
+    v = from_si(value_si, "applied", unit)
+    return f"{v:g}{unit}"
+
+
+def plan(campaign, by: str = "applied", config: FitConfig | None = None) -> list[FitSpec]:
+    """The fits of a campaign: one per applied force (default) or one per test."""
+    config = config or FitConfig()
+    tests = [t for t in campaign.tests
+             if (config.kinds is None or t.kind in config.kinds)
+             and (config.tests is None or t.id in config.tests)]
+    if not tests:
+        raise InputError(f"campaign {campaign.name!r}: no test matches the selection "
+                         f"(kinds={config.kinds}, tests={config.tests})")
+    if by == "test":
+        return [FitSpec(t.id, [t], t.applied, config) for t in tests]
+    if by != "applied":
+        raise InputError(f"--by must be 'test' or 'applied', got {by!r}")
+    groups: dict[float, list] = {}
+    for t in tests:
+        key = round(t.applied, 9)
+        groups.setdefault(key, []).append(t)
+    unit = campaign.units.get("applied", "N")
+    return [FitSpec(f"applied-{_fmt_applied(a, unit)}", g, a, config)
+            for a, g in sorted(groups.items())]
+
+
+def build_space(spec: FitSpec, scales) -> Space:
+    c = spec.config
+    pri = default_priors(scales, c.model, c.effects, c.likelihood)
+    pri, fixed = apply_overrides(pri, c.priors, source=f"fit {spec.id} priors")
+    if c.model == "lugre":
+        for n in ("k2", "d2", "k3", "d3", "w"):
+            pri.pop(n, None)
+    return Space(c.model, tuple(c.effects), c.likelihood, pri, fixed)
+
+
+def prepare(spec: FitSpec):
+    """Records, scales, space and log-posterior of a fit (no sampling)."""
+    c = spec.config
+    for eff in c.effects:
+        if eff not in P.EFFECTS:
+            raise InputError(f"unknown effect {eff!r}; known: {', '.join(P.EFFECTS)}")
+        if eff in P.NEEDS_APPLIED:
+            missing = [t.id for t in spec.tests if t.record.applied is None]
+            if missing:
+                raise InputError(f"effect {eff!r} needs the measured applied-force signal, which "
+                                 f"tests {missing} do not carry (campaign column `applied`)")
+    records = records_from_tests(spec.tests, samples_per_cycle=c.samples_per_cycle, eps=c.eps)
+    scales = record_scales([t.record for t in spec.tests])
+    space = build_space(spec, scales)
+    return records, scales, space, LogPosterior(space, records)
+
+
+def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True, log=None) -> dict:
+    """Sample one fit and write its outputs under out_dir/<fit id>/. Returns its summary entry."""
+    from .. import __version__
+    from . import outputs
+    log = log or (lambda m: None)
+    t0 = time.perf_counter()
+    fdir = Path(out_dir) / spec.id
+    fdir.mkdir(parents=True, exist_ok=True)
+    records, scales, space, logpost = prepare(spec)
+    log(f"fit {spec.id}: {len(records)} tests, {sum(r.n for r in records)} samples after decimation "
+        f"(factors {[r.q for r in records]}), {space.ndim} free parameters")
+    res = sample(logpost, scales, spec.config.seed, fdir / "chain.h5", spec.config.sampler,
+                 resume=resume, log=lambda m: log(f"fit {spec.id}: {m}"))
+    rng = np.random.default_rng([spec.config.seed, 7])
+    post = outputs.posterior_draws(logpost, res, rng)
+    pred = outputs.predictive(logpost, post, spec.config.n_predictive, rng)
+    dt = outputs.datatree(logpost, post, pred, attrs={
+        "package_version": __version__, "campaign": campaign_name, "fit": spec.id,
+        "seed": spec.config.seed, "config": spec.config.to_json()})
+    from .. import azadapter
+    azadapter.save(dt, fdir / "posterior.nc")
+    entry = outputs.summary_entry(spec, logpost, res, dt, post, pred)
+    entry["seconds"] = time.perf_counter() - t0
+    record = {"package_version": __version__, "campaign": campaign_name, "fit": spec.id,
+              "tests": [t.id for t in spec.tests], "seed": spec.config.seed,
+              "config": spec.config.to_json(), "space": space.to_json(), "scales": scales.to_json(),
+              "records": [{"id": r.id, "decimation": r.q, "samples": r.n, "eps_m": r.eps,
+                           "rate_hz": r.fs_raw / r.q} for r in records],
+              "sampler": {"steps": res.n_steps, "burn": res.burn, "thin": res.thin,
+                          "burn_in_phase_steps": res.burn_in_steps,
+                          "walkers": int(res.chain.shape[1]), "acceptance": res.acceptance,
+                          "tau": dict(zip(space.names, map(float, res.tau))),
+                          "converged_tau": res.converged_tau, "model_evaluations": res.n_evals,
+                          "seconds": res.seconds, "history": res.history},
+              "map": dict(zip(space.names, map(float, space.to_values(res.theta_map)))),
+              "log_prob_map": res.log_prob_map, "summary": entry}
+    atomic.write_json(fdir / "fit.json", jsonable(record))
+    log(f"fit {spec.id}: {'converged' if entry['converged'] else 'NOT converged'} "
+        f"after {res.n_steps} steps ({entry['seconds']:.0f} s), rmse {entry['rmse']:.4g} N")
+    return entry
+
+
+def fit_campaign(campaign_path, out_dir, by: str = "applied", config: FitConfig | None = None,
+                 resume: bool = True, log=None) -> dict:
+    """Fit every group of a campaign (serially) and write out_dir/summary.json."""
+    from .. import __version__
+    from ..campaign import load_campaign
+    camp = load_campaign(campaign_path)
+    specs = plan(camp, by, config)
+    fits = [run_fit(s, out_dir, camp.name, resume, log) for s in specs]
+    summary = {"package_version": __version__, "campaign": camp.name,
+               "campaign_path": str(campaign_path), "by": by,
+               "config": (config or FitConfig()).to_json(), "fits": fits}
+    atomic.write_json(Path(out_dir) / "summary.json", jsonable(summary))
+    return summary
+

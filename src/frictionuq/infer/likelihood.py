@@ -1,0 +1,221 @@
+"""Likelihood: records prepared for fitting (decimated with an anti-alias filter), and the
+vectorized log-posterior over a batch of walkers.
+
+data = simulated force + force_offset + noise, with noise either independent Gaussian
+(`iid`, sd sigma_noise) or a stationary AR(1) process (`ar1`, marginal sd sigma_noise, lag-1
+correlation noise_phi), per record, with sigma_noise and noise_phi integrated out
+(frictionuq.infer.noisemodel). Residuals of a friction model on a 100-1000 Hz record are strongly
+autocorrelated; the iid form then treats thousands of dependent samples as independent and makes
+posteriors far too narrow, which is why `ar1` is the default.
+
+Decimation. Long records are filtered and downsampled (scipy.signal.resample_poly: a zero-phase
+Kaiser-windowed FIR anti-alias filter) so that the excitation is still resolved: the kept rate
+is at least `samples_per_cycle` x the dominant frequency and 20 x the frequency below which 99 %
+of the velocity power above the displacement's noise floor lies (dominant_frequency).
+Displacement, force and the applied-force signal are filtered alike.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import resample_poly
+
+from .. import model as M
+from ..noise import default_eps
+from . import noisemodel
+from .space import Space
+
+LOG2PI = math.log(2 * math.pi)
+
+
+@dataclass
+class FitRecord:
+    id: str
+    t: np.ndarray
+    x: np.ndarray
+    y: np.ndarray               # observed force (N), decimated
+    applied: np.ndarray | None
+    drive: M.Drive
+    eps: float
+    q: int                      # decimation factor
+    fs_raw: float
+    applied_level: float = float("nan")   # nominal applied force of the test (SI)
+    kind: str = "other"
+    frequency_hz: float | None = None
+
+    @property
+    def n(self) -> int:
+        return self.y.size
+
+
+def dominant_frequency(t, x) -> tuple[float, float]:
+    """(dominant frequency of x, frequency under which 99 % of the velocity power lies), Hz.
+
+    The velocity power is taken from the displacement spectrum above its noise floor: a measured
+    displacement carries white sensor noise whose velocity power grows as f^2 and would otherwise
+    put the 99 % frequency near Nyquist (no decimation at all; measured on the ARTS records: 25+
+    Hz for 0.25 Hz sines). The floor is the median displacement power over the upper half of the
+    band; only spectral lines 10 x above it and within 50 dB of the strongest line count (the
+    servo-valve noise of the ARTS records shows as weak lines near 340 Hz)."""
+    dt = float(np.median(np.diff(t)))
+    xd = x - np.mean(x)
+    X = np.abs(np.fft.rfft(xd * np.hanning(xd.size))) ** 2
+    f = np.fft.rfftfreq(xd.size, dt)
+    if X.size < 3 or not np.any(X[1:] > 0):
+        return 1.0 / (t[-1] - t[0]), 0.5 / dt
+    f_dom = float(f[1:][np.argmax(X[1:])])
+    floor = float(np.median(X[f >= 0.25 / dt])) if np.any(f >= 0.25 / dt) else 0.0
+    Xs = np.where(X > max(10.0 * floor, 1e-5 * float(np.max(X[1:]))), X, 0.0)
+    pv = Xs * f**2                                  # velocity power above the noise floor
+    if not np.sum(pv) > 0:
+        return f_dom, f_dom
+    c = np.cumsum(pv) / np.sum(pv)
+    f99 = float(f[min(np.searchsorted(c, 0.99), f.size - 1)])
+    return f_dom, f99
+
+
+def decimation_factor(t, x, samples_per_cycle: float = 128, frequency_hz: float | None = None) -> int:
+    dt = float(np.median(np.diff(t)))
+    f_dom, f99 = dominant_frequency(t, x)
+    if frequency_hz:
+        f_dom = frequency_hz
+    rate = max(samples_per_cycle * f_dom, 20.0 * f99)
+    return max(1, int(math.floor(1.0 / dt / rate)))
+
+
+def _decimate(a: np.ndarray, q: int) -> np.ndarray:
+    if q == 1:
+        return a.copy()
+    # remove the linear trend through the end points first so the FIR's zero padding does not
+    # create edge transients, then add it back at the kept samples
+    n = a.size
+    trend = a[0] + (a[-1] - a[0]) * np.arange(n) / (n - 1)
+    out = resample_poly(a - trend, 1, q)
+    return out + trend[::q][: out.size]
+
+
+def prepare_record(test_id, t, x, force, applied=None, *, q: int | str = "auto", eps="auto",
+                   samples_per_cycle: float = 128, frequency_hz=None, applied_level=float("nan"),
+                   kind="other") -> FitRecord:
+    """Decimate one record (SI arrays) and prepare it for the likelihood."""
+    t = np.asarray(t, float)
+    x = np.asarray(x, float)
+    force = np.asarray(force, float)
+    e = default_eps(x) if eps == "auto" else float(eps)
+    if q == "auto":
+        q = decimation_factor(t, x, samples_per_cycle, frequency_hz)
+    q = int(q)
+    td = t[::q]
+    xd = _decimate(x, q)[: td.size]
+    yd = _decimate(force, q)[: td.size]
+    ad = None if applied is None else _decimate(np.asarray(applied, float), q)[: td.size]
+    td = td[: xd.size]
+    drive = M.prepare(td, xd, ad)
+    return FitRecord(str(test_id), td, xd, yd, ad, drive, e, q, 1.0 / float(np.median(np.diff(t))),
+                     float(applied_level), kind, frequency_hz)
+
+
+def records_from_tests(tests, **kw) -> list[FitRecord]:
+    """FitRecords from campaign Test objects (frictionuq.campaign)."""
+    out = []
+    for te in tests:
+        r = te.record
+        out.append(prepare_record(te.id, r.t, r.x, r.force, r.applied, frequency_hz=te.frequency_hz,
+                                  applied_level=te.applied, kind=te.kind, **kw))
+    return out
+
+
+def gauss_loglik(e: np.ndarray, sigma: np.ndarray, phi: np.ndarray, pointwise: bool = False):
+    """Log-likelihood of residuals e (W, N) under iid (phi = 0) or AR(1) Gaussian noise with
+    marginal sd sigma (W,) and lag-1 correlation phi (W,). Sum over N, or per sample."""
+    s = sigma[:, None]
+    ph = phi[:, None]
+    innov_sd = s * np.sqrt(1.0 - ph**2)
+    first = -0.5 * (e[:, :1] / s) ** 2 - np.log(s) - 0.5 * LOG2PI
+    rest = e[:, 1:] - ph * e[:, :-1]
+    rest = -0.5 * (rest / innov_sd) ** 2 - np.log(innov_sd) - 0.5 * LOG2PI
+    if pointwise:
+        return np.concatenate([first, rest], axis=1)
+    return first[:, 0] + rest.sum(axis=1)
+
+
+class LogPosterior:
+    """Vectorized log-posterior: theta (W, D) -> (W, 1 + n_records) array, column 0 the log
+    posterior, then each record's log-likelihood (emcee blobs). Invalid proposals get -inf."""
+
+    def __init__(self, space: Space, records: list[FitRecord], parallel: bool | None = None):
+        self.space = space
+        self.records = records
+        self.parallel = parallel
+        self.noise = space.noise_config()
+        self.n_evals = 0
+
+    def simulate(self, theta, rec: FitRecord) -> np.ndarray:
+        Mx = self.space.kernel_matrix(theta)
+        return M.simulate_batch(rec.drive, None, Mx, model=self.space.model, eps=rec.eps,
+                                parallel=self.parallel, check=False)
+
+    def loglik_records(self, theta) -> np.ndarray:
+        """(W, n_records) log-likelihood of each record (no prior check)."""
+        theta = np.atleast_2d(theta)
+        off = self.space.offset(theta)
+        out = np.empty((theta.shape[0], len(self.records)))
+        for j, rec in enumerate(self.records):
+            out[:, j] = noisemodel.log_marginal(self.residuals(theta, rec, off), **self.noise)
+        self.n_evals += theta.shape[0]
+        return out
+
+    def residuals(self, theta, rec: FitRecord, off=None) -> np.ndarray:
+        """Residuals y - F - offset (W, N) of one record."""
+        theta = np.atleast_2d(theta)
+        off = self.space.offset(theta) if off is None else off
+        return rec.y[None, :] - self.simulate(theta, rec) - off[:, None]
+
+    def __call__(self, theta) -> np.ndarray:
+        theta = np.atleast_2d(theta)
+        lp = self.space.log_prior(theta)
+        res = np.full((theta.shape[0], 1 + len(self.records)), -np.inf)
+        ok = np.isfinite(lp)
+        if ok.any():
+            ll = self.loglik_records(theta[ok])
+            ll = np.where(np.isfinite(ll), ll, -np.inf)
+            res[ok, 1:] = ll
+            res[ok, 0] = lp[ok] + ll.sum(axis=1)
+        res[:, 1:] = np.where(np.isfinite(res[:, 1:]), res[:, 1:], -1e300)  # finite blobs
+        res[:, 0] = np.where(np.isnan(res[:, 0]), -np.inf, res[:, 0])
+        return res
+
+    def log_prob(self, theta) -> np.ndarray:
+        return self(theta)[:, 0]
+
+    def pointwise(self, theta, rec: FitRecord, sigma: np.ndarray, phi: np.ndarray) -> np.ndarray:
+        """Per-sample log-likelihood terms (W, N) of one record at given noise parameters
+        (AR(1): the conditional terms e_k | e_(k-1))."""
+        return gauss_loglik(self.residuals(theta, rec), sigma, phi, pointwise=True)
+
+
+class UnboundedPosterior:
+    """The log-posterior in the sampler's unbounded coordinates u (Space.to_u): same output
+    layout as LogPosterior, column 0 = log p(theta(u) | data) + log |d theta / d u|, the density
+    of u. Every finite u maps strictly inside the prior box."""
+
+    def __init__(self, logpost: LogPosterior):
+        self.logpost = logpost
+        self.space = logpost.space
+
+    def __call__(self, u) -> np.ndarray:
+        u = np.atleast_2d(np.asarray(u, dtype=float))
+        res = np.full((u.shape[0], 1 + len(self.logpost.records)), -np.inf)
+        ok = np.all(np.isfinite(u), axis=1)
+        if ok.any():
+            r = self.logpost(self.space.from_u(u[ok]))
+            r[:, 0] = r[:, 0] + self.space.log_jac_u(u[ok])
+            res[ok] = r
+        res[:, 1:] = np.where(np.isfinite(res[:, 1:]), res[:, 1:], -1e300)
+        res[:, 0] = np.where(np.isnan(res[:, 0]), -np.inf, res[:, 0])
+        return res
+
+    def log_prob(self, u) -> np.ndarray:
+        return self(u)[:, 0]

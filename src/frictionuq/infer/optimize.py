@@ -1,0 +1,229 @@
+"""MAP search: multi-start nonlinear least squares, then a polish of the full log-posterior.
+
+The force records are long and precise, so the posterior is sharp and a random start rarely
+lands near it. The search therefore works in three steps:
+
+1. starting points: a heuristic start read off the records (friction plateaus, the distance
+   after a reversal over which the force recovers, a stiff pre-sliding), random perturbations of
+   it, and the best of a batch of prior draws;
+2. from each start, on coarsened copies of the records (every k-th sample, <= 800 per record),
+   then for the two best again on the full records, trust-region least squares (scipy.optimize.least_squares, bounded by the
+   prior box) on the concatenated residuals of all records, for the model parameters and the
+   force offset; the Jacobian is a forward difference evaluated as ONE batch of D+1 simulations
+   (simulate_batch, all cores);
+3. the best result is polished with Powell's method on the full log-posterior (priors and the
+   integrated per-record noise included).
+
+The Gauss-Newton curvature at the optimum (each record weighted by its residual variance with
+AR(1) inflation, plus the prior box as a weak regulariser) gives the covariance of the walkers'
+initial ball.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import least_squares, minimize
+
+from .likelihood import LogPosterior
+from .priors import RecordScales
+
+
+
+def heuristic_values(space, records, scales: RecordScales) -> dict[str, float]:
+    """A physically sensible start read off the records (SI values)."""
+    F, A = scales.f_scale, scales.amp
+    fwd, bwd, recover = [], [], []
+    for r in records:
+        v = r.drive.v
+        vm = np.max(np.abs(v)) or 1.0
+        fwd.append(r.y[v > 0.3 * vm])
+        bwd.append(r.y[v < -0.3 * vm])
+        recover.extend(_recovery_lengths(r.x, r.y, r.eps))
+    up = float(np.median(np.concatenate(fwd))) if fwd else F
+    lo = float(np.median(np.concatenate(bwd))) if bwd else -F
+    off = 0.0
+    fcf, fcb = max(up - off, 0.05 * F), max(off - lo, 0.05 * F)
+    total = float(np.median(recover)) if recover else 0.05 * A
+    total = float(np.clip(total, 1e-3 * A, 0.5 * A))
+    vals = {
+        "fc_fwd": fcf, "fc_bwd": fcb, "fs_fwd": 1.05 * fcf, "fs_bwd": 1.05 * fcb,
+        "v_s": 0.02 * scales.v_max, "sigma0": F / (0.01 * total + 1e-4 * A),
+        "sigma1": 0.01 * F / max(scales.v_max, 1e-9), "sigma2": 0.01 * F / max(scales.v_max, 1e-9),
+        "d2": 0.6 * total, "d3": 0.3 * total, "w": 0.05 * total,
+        "force_offset": off,
+    }
+    vals["k2"] = 0.3 * F / vals["d2"]
+    vals["k3"] = 0.5 * F / vals["d3"]
+    for eff_param in ("p2", "kappa", "e_fade", "a_hump", "l_hump", "eps_ecc", "l_ecc", "psi_ecc",
+                      "beta_rate", "v_ref", "beta_app"):
+        p = space.priors.get(eff_param)
+        if p is not None:   # start effects near off (neutral) when the prior allows it
+            from .. import params as P
+            neu = P.PARAMS[eff_param].neutral
+            vals[eff_param] = neu if neu is not None and p.lower <= neu <= p.upper else \
+                (np.sqrt(p.lower * p.upper) if p.log else 0.5 * (p.lower + p.upper))
+    return vals
+
+
+def _recovery_lengths(x, y, eps):
+    """Distance after each reversal over which the force covers 90 % of its swing."""
+    from ..noise import reversal_indices
+    idx = reversal_indices(np.asarray(x, float), float(eps))
+    out = []
+    bounds = list(idx) + [x.size]
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        if b - a < 5:
+            continue
+        seg_x, seg_y = x[a - 1:b], y[a - 1:b]
+        d = np.sign(seg_x[-1] - seg_x[0]) or 1.0
+        swing = d * (seg_y - seg_y[0])
+        full = np.max(swing)
+        if full <= 0:
+            continue
+        k = np.argmax(swing >= 0.9 * full)
+        out.append(abs(seg_x[k] - seg_x[0]))
+    return out
+
+
+def _clip_in(space, th):
+    m = 1e-9 * (space.hi - space.lo)
+    return np.clip(th, space.lo + m, space.hi - m)
+
+
+def whitening(logpost: LogPosterior, theta: np.ndarray) -> list[tuple[float, float]]:
+    """Per record (lag-1 correlation phi, innovation sd) of the residuals at theta."""
+    out = []
+    for rec in logpost.records:
+        e = logpost.residuals(theta[None, :], rec)[0]
+        phi = float(np.clip(np.corrcoef(e[1:], e[:-1])[0, 1], 0.0, 0.995)) if e.size > 3 else 0.0
+        s = float(np.std(e[1:] - phi * e[:-1])) or 1.0
+        out.append((phi if np.isfinite(phi) else 0.0, s if np.isfinite(s) else 1.0))
+    return out
+
+
+def least_squares_fit(logpost: LogPosterior, theta0: np.ndarray, max_nfev: int = 200, white=None):
+    """Least squares over all sampled parameters (model and offset) from theta0; with `white`
+    (per record (phi, innovation sd), from `whitening`) on the AR(1)-whitened residuals, each
+    record scaled by its own noise: iterated, this maximises the likelihood with per-record
+    AR(1) noise (the raw least squares lets the records with the largest misfit dominate)."""
+    sp = logpost.space
+
+    def resid_batch(th):
+        th = np.atleast_2d(th)
+        parts = []
+        for j, rec in enumerate(logpost.records):
+            e = logpost.residuals(th, rec)
+            if white is not None:     # AR(1)-whitened and scaled by the innovation sd
+                phi, s = white[j]
+                e = np.concatenate([e[:, :1] * np.sqrt(1 - phi**2), e[:, 1:] - phi * e[:, :-1]],
+                                   axis=1) / s
+            parts.append(e)
+        r = np.concatenate(parts, axis=1)
+        return np.where(np.isfinite(r), r, 1e12)
+
+    lo, hi = sp.lo, sp.hi
+    h = 1e-6 * (hi - lo)
+
+    def fun(p):
+        return resid_batch(p)[0]
+
+    def jac(p):
+        step = np.where(p + h <= hi, h, -h)
+        pts = np.repeat(p[None, :], p.size + 1, axis=0)
+        pts[1:] += np.diag(step)
+        R = resid_batch(pts)
+        return ((R[1:] - R[0]) / step[:, None]).T
+
+    p0 = _clip_in(sp, theta0)
+    r = least_squares(fun, p0, jac=jac, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev,
+                      xtol=1e-10, ftol=1e-10)
+    return _clip_in(sp, r.x), r
+
+
+def coarsened(logpost: LogPosterior, max_samples: int = 800) -> LogPosterior:
+    """The same log-posterior on every k-th sample of each record (for cheap searches)."""
+    from dataclasses import replace as dc_replace
+    from .. import model as M
+    recs = []
+    for r in logpost.records:
+        k = max(1, int(np.ceil(r.n / max_samples)))
+        if k == 1:
+            recs.append(r)
+            continue
+        a = None if r.applied is None else r.applied[::k]
+        recs.append(dc_replace(r, t=r.t[::k], x=r.x[::k], y=r.y[::k], applied=a,
+                               drive=M.prepare(r.t[::k], r.x[::k], a)))
+    return LogPosterior(logpost.space, recs, logpost.parallel)
+
+
+def find_map(logpost: LogPosterior, scales: RecordScales, rng: np.random.Generator,
+             n_random: int = 6, n_prior: int = 4, n_draws: int = 1024, log=None):
+    """Multi-start MAP search. Returns (theta_map, log_prob_map, info)."""
+    log = log or (lambda m: None)
+    sp = logpost.space
+    coarse = coarsened(logpost)
+    h0 = heuristic_values(sp, logpost.records, scales)
+    th_h = _clip_in(sp, sp.to_theta({n: h0.get(n, np.exp(0.5 * (sp.lo[i] + sp.hi[i])) if sp.log[i]
+                                          else 0.5 * (sp.lo[i] + sp.hi[i]))
+                                     for i, n in enumerate(sp.names)}))
+    starts = [th_h]
+    width = sp.hi - sp.lo
+    for _ in range(n_random):
+        starts.append(_clip_in(sp, th_h + rng.normal(0, 0.08, sp.ndim) * width))
+    draws = sp.sample_prior(n_draws, rng)
+    lp = np.concatenate([coarse.log_prob(draws[i:i + 256]) for i in range(0, n_draws, 256)])
+    for k in np.argsort(-lp)[:n_prior]:
+        starts.append(draws[k])
+    results = []
+    for s in starts:
+        th, r = least_squares_fit(coarse, s, max_nfev=100)
+        results.append((float(coarse.log_prob(th[None, :])[0]), th, r))
+    results.sort(key=lambda z: -z[0])
+    coarse_lps = [z[0] for z in results]
+    if coarse is not logpost:
+        fine = []
+        for _, th0, _ in results[:2]:
+            th, r = least_squares_fit(logpost, th0, max_nfev=60)
+            fine.append((float(logpost.log_prob(th[None, :])[0]), th, r))
+            for _ in range(3):     # iteratively reweighted: AR(1)-whitened, per-record scales
+                th, r = least_squares_fit(logpost, th, max_nfev=40, white=whitening(logpost, th))
+                fine.append((float(logpost.log_prob(th[None, :])[0]), th, r))
+        results = sorted(fine, key=lambda z: -z[0])
+    best_lp, best, best_r = results[0]
+    log(f"least squares from {len(starts)} starts (coarse log-posteriors, best first: "
+        f"{[round(v, 1) for v in coarse_lps[:4]]}); refined best {best_lp:.6g}")
+
+    def nlp(x):
+        v = logpost.log_prob(x[None, :])[0]
+        return -v if np.isfinite(v) else 1e300
+    pol = minimize(nlp, best, method="Powell", bounds=list(zip(sp.lo, sp.hi)),
+                   options={"maxiter": 4000, "xtol": 1e-8, "ftol": 1e-12})
+    th_map = best if pol.fun > -best_lp else _clip_in(sp, pol.x)
+    lp_map = float(logpost.log_prob(th_map[None, :])[0])
+    info = {"starts_log_prob_coarse": coarse_lps, "heuristic": h0}
+    return th_map, lp_map, info
+
+
+def gauss_newton_cov(logpost: LogPosterior, theta: np.ndarray) -> np.ndarray:
+    """Approximate posterior covariance at theta: Gauss-Newton with each record weighted by its
+    residual variance, inflated by (1 + phi)/(1 - phi) for its lag-1 correlation phi, plus the
+    prior box as a weak regulariser."""
+    sp = logpost.space
+    D = sp.ndim
+    h = np.where(theta + 1e-6 * (sp.hi - sp.lo) <= sp.hi, 1e-6, -1e-6) * (sp.hi - sp.lo)
+    pts = np.repeat(theta[None, :], D + 1, axis=0)
+    pts[1:] += np.diag(h)
+    H = np.diag(1.0 / (0.25 * (sp.hi - sp.lo)) ** 2)
+    for rec in logpost.records:
+        R = logpost.residuals(pts, rec)
+        e = R[0]
+        var = float(np.mean(e**2)) or 1e-300
+        phi = float(np.clip(np.corrcoef(e[1:], e[:-1])[0, 1], 0.0, 0.99)) if e.size > 3 else 0.0
+        J = (R[1:] - R[0]) / h[:, None]
+        H += J @ J.T / (var * (1 + phi) / (1 - phi))
+    H = np.where(np.isfinite(H), H, 0.0)
+    try:
+        cov = np.linalg.inv(H)
+        np.linalg.cholesky(cov)
+        return cov
+    except np.linalg.LinAlgError:
+        return np.diag(1.0 / np.clip(np.diag(H), 1e-300, None))

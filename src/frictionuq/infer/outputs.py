@@ -1,0 +1,174 @@
+"""From a sampler result to the fit's outputs: named posterior draws (with each record's noise
+parameters drawn from their conditional posterior), the posterior predictive, the ArviZ DataTree
+and the summary entry (statistics, convergence, RMSE, identifiability)."""
+from __future__ import annotations
+
+import numpy as np
+
+from .. import azadapter
+from . import noisemodel
+
+WEAK_CONTRACTION = 0.5       # posterior sd / prior sd above this: "close to the prior"
+STRONG_CORRELATION = 0.9     # |rho| above this: a strongly correlated pair
+AT_BOUND = 0.02              # 95 % interval this close (fraction of the prior width) to a bound
+
+
+def posterior_draws(logpost, res, rng) -> dict:
+    """Posterior draws as arrays shaped (walker, draw[, record])."""
+    sp = logpost.space
+    th = np.transpose(res.chain, (1, 0, 2))          # (W, D, ndim)
+    W, D, _ = th.shape
+    flat = th.reshape(-1, sp.ndim)
+    vals = sp.to_values(flat).reshape(W, D, sp.ndim)
+    out = {"theta": th, "values": {n: vals[:, :, i] for i, n in enumerate(sp.names)},
+           "fixed": dict(sp.fixed)}
+    sig = np.empty((W * D, len(logpost.records)))
+    phi = np.empty_like(sig)
+    for j, rec in enumerate(logpost.records):
+        e = np.concatenate([logpost.residuals(flat[k:k + 512], rec) for k in range(0, len(flat), 512)])
+        sig[:, j], phi[:, j] = noisemodel.draw_noise(e, rng=rng, **_draw_args(logpost))
+    out["sigma_noise"] = sig.reshape(W, D, -1)
+    out["noise_phi"] = phi.reshape(W, D, -1)
+    out["log_prob"] = res.log_prob.T
+    out["loglik_records"] = np.transpose(res.blobs, (1, 0, 2)) if res.blobs.ndim == 3 else \
+        res.blobs.T[:, :, None]
+    return out
+
+
+def _draw_args(logpost) -> dict:
+    n = dict(logpost.noise)
+    n.pop("sigma_bounds")
+    return n
+
+
+def ar1_noise(sigma, phi, n, rng) -> np.ndarray:
+    """Stationary AR(1) noise paths (S, n) with marginal sd sigma (S,) and correlation phi (S,)."""
+    S = sigma.size
+    z = rng.standard_normal((S, n))
+    e = np.empty((S, n))
+    e[:, 0] = sigma * z[:, 0]
+    innov = sigma * np.sqrt(1 - phi**2)
+    for k in range(1, n):
+        e[:, k] = phi * e[:, k - 1] + innov * z[:, k]
+    return e
+
+
+def predictive(logpost, post, n_draws: int, rng) -> dict:
+    """Posterior predictive of every record: noise-free model force (offset included) and with
+    the record's measurement noise. Lists over records of (S, N) arrays."""
+    th = post["theta"].reshape(-1, post["theta"].shape[-1])
+    S = min(n_draws, th.shape[0])
+    idx = rng.choice(th.shape[0], size=S, replace=False)
+    sel = th[idx]
+    off = logpost.space.offset(sel)
+    sig = post["sigma_noise"].reshape(-1, len(logpost.records))[idx]
+    phi = post["noise_phi"].reshape(-1, len(logpost.records))[idx]
+    model, rep = [], []
+    for j, rec in enumerate(logpost.records):
+        F = logpost.simulate(sel, rec) + off[:, None]
+        model.append(F)
+        rep.append(F + ar1_noise(sig[:, j], phi[:, j], rec.n, rng))
+    return {"index": idx, "model": model, "rep": rep}
+
+
+def datatree(logpost, post, pred, attrs: dict):
+    """The fit's ArviZ DataTree. Observed force lives on the "obs" dim (all records
+    concatenated; constant_data says which test and time each sample belongs to); the
+    log-likelihood's unit is the whole test (dim "test"), the held-out unit of model comparison."""
+    recs = logpost.records
+    posterior = dict(post["values"])
+    posterior["sigma_noise"] = post["sigma_noise"]
+    posterior["noise_phi"] = post["noise_phi"]
+    observed = {"force": np.concatenate([r.y for r in recs])}
+    const = {"time": np.concatenate([r.t for r in recs]),
+             "displacement": np.concatenate([r.x for r in recs]),
+             "test_of_obs": np.concatenate([[r.id] * r.n for r in recs])}
+    pp = {"force": np.concatenate(pred["rep"], axis=1)[None],
+          "force_model": np.concatenate(pred["model"], axis=1)[None]}
+    attrs = dict(attrs)
+    attrs.update(units="SI: force N, displacement m, time s; parameters in their SI units",
+                 log_likelihood="per test: log marginal likelihood of the whole record, noise "
+                                "parameters integrated out (tests are the held-out units)")
+    return azadapter.build(
+        posterior,
+        sample_stats={"lp": post["log_prob"]},
+        log_likelihood={"force_per_test": post["loglik_records"]},
+        observed_data=observed, constant_data=const, posterior_predictive=pp,
+        dims={"sigma_noise": ["test"], "noise_phi": ["test"], "force_per_test": ["test"],
+              "force": ["obs"], "force_model": ["obs"], "time": ["obs"], "displacement": ["obs"],
+              "test_of_obs": ["obs"]},
+        coords={"test": [r.id for r in recs], "obs": np.arange(observed["force"].size)},
+        attrs=attrs)
+
+
+def rmse(logpost, pred) -> tuple[float, dict]:
+    """RMSE (N) of the posterior median of the noise-free prediction, pooled and per test."""
+    per, sq, n = {}, 0.0, 0
+    for rec, F in zip(logpost.records, pred["model"]):
+        r = rec.y - np.median(F, axis=0)
+        per[rec.id] = float(np.sqrt(np.mean(r**2)))
+        sq += float(np.sum(r**2))
+        n += r.size
+    return float(np.sqrt(sq / n)), per
+
+
+def identifiability(space, post) -> dict:
+    """Parameters close to their prior (posterior sd / prior sd > 0.5, in sampling coordinates)
+    and strongly correlated pairs (|rho| > 0.9)."""
+    th = post["theta"].reshape(-1, space.ndim)
+    sd_post = th.std(axis=0)
+    weak, contraction = [], {}
+    for i, n in enumerate(space.names):
+        p = space.priors[n]
+        if p.dist == "normal":
+            sd_prior = min(p.sd, (space.hi[i] - space.lo[i]) / np.sqrt(12))
+        else:
+            sd_prior = (space.hi[i] - space.lo[i]) / np.sqrt(12)
+        contraction[n] = float(sd_post[i] / sd_prior) if sd_prior > 0 else float("nan")
+        if contraction[n] > WEAK_CONTRACTION:
+            weak.append(n)
+    C = np.corrcoef(th.T) if space.ndim > 1 else np.ones((1, 1))
+    pairs = [[space.names[i], space.names[j], float(C[i, j])]
+             for i in range(space.ndim) for j in range(i + 1, space.ndim)
+             if abs(C[i, j]) > STRONG_CORRELATION]
+    # posteriors pressed against a prior bound: the whole 95 % interval within AT_BOUND of the
+    # box width from the bound (sampling coordinates). Either the data want a value beyond the
+    # prior (e.g. v_s above 30 % of the peak velocity on the ARTS records) or the bound is
+    # physical (a take-up length d3 -> 0 means no take-up stage)
+    lo_q, hi_q = np.quantile(th, [0.025, 0.975], axis=0)
+    width = space.hi - space.lo
+    at_bound = {}
+    for i, n in enumerate(space.names):
+        if hi_q[i] - space.lo[i] < AT_BOUND * width[i]:
+            at_bound[n] = "lower"
+        elif space.hi[i] - lo_q[i] < AT_BOUND * width[i]:
+            at_bound[n] = "upper"
+    return {"posterior_over_prior_sd": contraction, "close_to_prior": weak,
+            "strongly_correlated": pairs, "at_prior_bound": at_bound,
+            "rule": f"close to prior: sd ratio > {WEAK_CONTRACTION}; correlated: |rho| > "
+                    f"{STRONG_CORRELATION}; at a prior bound: 95 % interval within {AT_BOUND} of "
+                    "the prior width (sampling coordinates) from the bound"}
+
+
+def summary_entry(spec, logpost, res, dt, post, pred) -> dict:
+    from .fit import CONVERGENCE
+    sp = logpost.space
+    tab = azadapter.summary(dt, var_names=list(sp.names) + ["sigma_noise", "noise_phi"])
+    params = {}
+    for name, row in tab.iterrows():
+        params[str(name)] = {k: float(row[k]) for k in tab.columns}
+    for n, v in sp.fixed.items():
+        params[n] = {"fixed": float(v)}
+    free = [n for n in params if "fixed" not in params[n]]
+    bad = [n for n in free if not (params[n]["r_hat"] <= CONVERGENCE["r_hat_max"]
+                                   and params[n]["ess_bulk"] >= CONVERGENCE["ess_min"]
+                                   and params[n]["ess_tail"] >= CONVERGENCE["ess_min"])]
+    total, per = rmse(logpost, pred)
+    return {"id": spec.id, "tests": [t.id for t in spec.tests], "applied": spec.applied,
+            "model": sp.model, "effects": list(sp.effects), "likelihood": sp.likelihood,
+            "parameters": params, "converged": not bad, "not_converged_parameters": bad,
+            "convergence_rule": f"r_hat <= {CONVERGENCE['r_hat_max']} and ess_bulk, ess_tail >= "
+                                f"{CONVERGENCE['ess_min']} for every free parameter",
+            "rmse": total, "rmse_per_test": per, "identifiability": identifiability(sp, post),
+            "sampler_steps": res.n_steps, "tau_max": float(np.max(res.tau)),
+            "model_evaluations": res.n_evals}

@@ -1,0 +1,292 @@
+"""The sampler controller: a multi-start MAP search, a burn-in phase, then emcee run in chunks
+until the chain passes the convergence criteria.
+
+* MAP: frictionuq.infer.optimize (multi-start least squares with batched Jacobians, then a
+  polish of the full log-posterior).
+* Coordinates: the walkers move in the unbounded coordinates u = logit of the position in the
+  prior box (Space.to_u, with the Jacobian in the density: likelihood.UnboundedPosterior). The
+  posteriors of real records press against prior bounds (a take-up length d3 near 0, v_s at its
+  upper bound, sigma2 at its lower one); in box coordinates about half of all proposals fell
+  outside the box and were rejected, and the walkers piled up at the walls.
+* Start: walkers drawn from N(MAP, Sigma/4) with Sigma the Gauss-Newton covariance at the MAP
+  (AR(1)-inflated, prior box as a weak regulariser), kept 0.1 % of the box away from its walls.
+* Burn-in (not stored, always discarded): at least `burn_rounds` rounds of `burn_steps` steps,
+  more (up to `burn_max_rounds`) while the median walker's log-posterior still rises by more
+  than sqrt(D/2) per round or walkers are stuck. After each round the walkers are re-initialised by drawing states from the second half of that round,
+  pooled over the walkers that are not stuck (a walker whose mean log-posterior lies more than
+  max(10, 3 sqrt(D/2)) below the median walker's is stuck). The Gauss-Newton ball is far too
+  narrow for the weakly identified parameters and the MAP need not be the mode; the pooled
+  re-initialisation spreads the ensemble over the posterior and drops stuck walkers (a standard
+  emcee practice; it only affects the discarded burn-in).
+* Moves: differential evolution (70 %), DE with gamma = 1 (10 %: the "mode-jumping" step of
+  ter Braak 2006) and DE snooker (20 %) (ter Braak & Vrugt 2008; emcee docs). DE needs more
+  than 2 x ndim walkers; the default is max(32, 2 ndim + 4): the R-hat criterion (walkers as
+  chains) needs every walker's chain to be long compared with tau, so more walkers than DE
+  needs only cost time (measured: tau about 185 steps with both 32 and 64 walkers on a real
+  record).
+* Stopping: every `chunk` steps of the stored run, on its part after the first
+  `discard_fraction` (the burn-in phase is already discarded): the integrated autocorrelation
+  time tau of every parameter (emcee.autocorr) and ArviZ's rank-normalised R-hat and bulk/tail
+  ESS (walkers as chains). The run stops when the kept chain is longer than `tau_factor` x max
+  tau, max tau changed by less than `tau_rtol` since the previous check, and every parameter has
+  R-hat <= `r_hat_max` and ESS >= `ess_min`; or at `max_steps` (then the fit is reported as not
+  converged).
+* Storage: emcee's HDF5 backend (in u coordinates), written every step: an interrupted run
+  resumes from its last step (random state included) with `resume=True`.
+* Reproducibility: emcee copies NumPy's global random state at construction, so the sampler's
+  own state is seeded explicitly from `seed`.
+"""
+from __future__ import annotations
+
+import os
+import sys
+import time
+import warnings
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import emcee
+import numpy as np
+
+from .. import azadapter
+from .likelihood import LogPosterior, UnboundedPosterior
+from .optimize import find_map, gauss_newton_cov
+from .priors import RecordScales
+
+
+@dataclass
+class SamplerConfig:
+    nwalkers: int | None = None       # default: max(32, 2 * ndim + 4) rounded up to even
+    chunk: int = 1000
+    max_steps: int = 100000           # stored steps, after the burn-in phase
+    min_steps: int = 2000
+    burn_rounds: int = 2              # minimum burn-in rounds
+    burn_max_rounds: int = 10         # more while the walkers still climb or some are stuck
+    burn_steps: int = 1000
+    discard_fraction: float = 0.25    # of the stored run, before the convergence checks
+    de_gamma: float | None = None     # DE scale; None: 2.38 / sqrt(2 ndim) (emcee's default)
+    tau_factor: float = 50.0
+    tau_rtol: float = 0.05
+    r_hat_max: float = 1.01
+    ess_min: float = 400.0
+    n_random_starts: int = 6
+    n_prior_starts: int = 4
+    thin_output: int | None = None    # default: about tau/4
+    progress: bool | None = None      # default: on a terminal
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+
+@dataclass
+class SampleResult:
+    chain: np.ndarray            # (draws, walkers, ndim) after burn-in and thinning, box coordinates
+    log_prob: np.ndarray         # (draws, walkers) log-posterior in box coordinates
+    blobs: np.ndarray            # (draws, walkers, n_records) per-record log-likelihood
+    tau: np.ndarray              # (ndim,) integrated autocorrelation time, steps
+    n_steps: int                 # stored steps (after the burn-in phase)
+    burn: int                    # stored steps discarded
+    thin: int
+    acceptance: float
+    converged_tau: bool
+    theta_map: np.ndarray
+    log_prob_map: float
+    n_evals: int
+    seconds: float
+    burn_in_steps: int = 0       # steps of the (unstored) burn-in phase
+    history: list = field(default_factory=list)
+
+
+def _nwalkers(cfg: SamplerConfig, ndim: int) -> int:
+    w = cfg.nwalkers or max(32, 2 * ndim + 4)
+    if w <= 2 * ndim:
+        raise ValueError(f"differential evolution needs more than 2 x ndim = {2 * ndim} walkers, got {w}")
+    return int(w + (w % 2))
+
+
+def initial_ball(theta_map, cov, nwalkers, rng, space) -> np.ndarray:
+    """Walkers around the MAP (box coordinates): N(MAP, Sigma/4), kept 0.1 % of the box width
+    away from its walls (a MAP on a wall would put every walker at u = -inf)."""
+    width = space.hi - space.lo
+    sd = np.sqrt(np.clip(np.diag(cov), (1e-8 * width) ** 2, (0.1 * width) ** 2))
+    dsd = np.sqrt(np.abs(np.diag(cov)))
+    corr = cov / np.outer(dsd, dsd)
+    corr = np.where(np.isfinite(corr), corr, 0.0)
+    try:
+        L = np.linalg.cholesky(corr + 1e-9 * np.eye(len(sd)))
+    except np.linalg.LinAlgError:
+        L = np.eye(len(sd))
+    margin = 1e-3 * width
+    centre = np.clip(theta_map, space.lo + margin, space.hi - margin)
+    z = rng.standard_normal((nwalkers, len(sd))) @ L.T
+    p = centre + 0.5 * z * sd   # half the approximate posterior sd: inside the typical set
+    return np.clip(p, space.lo + 0.5 * margin, space.hi - 0.5 * margin)
+
+
+def reinitialise(chain: np.ndarray, log_prob: np.ndarray, nwalkers: int, rng) -> tuple[np.ndarray, int]:
+    """New walker positions drawn (without replacement) from the states of the second half of a
+    burn-in chain (steps, walkers, ndim), pooled over the walkers that are not stuck. Returns
+    (positions, number of stuck walkers)."""
+    n = chain.shape[0]
+    half, lp = chain[n // 2:], log_prob[n // 2:]
+    mean_lp = np.mean(lp, axis=0)
+    tol = max(10.0, 3.0 * np.sqrt(chain.shape[2] / 2.0))
+    good = np.flatnonzero(mean_lp >= np.median(mean_lp) - tol)
+    pool = half[:, good].reshape(-1, chain.shape[2])
+    pool_lp = lp[:, good].ravel()
+    # a rejected proposal repeats a state: draw distinct states only (two identical walkers
+    # make the snooker move divide by zero)
+    pool = np.unique(pool[np.isfinite(pool_lp)], axis=0)
+    if pool.shape[0] >= nwalkers:
+        return pool[rng.choice(pool.shape[0], size=nwalkers, replace=False)], int(chain.shape[1] - good.size)
+    p = pool[rng.choice(pool.shape[0], size=nwalkers, replace=True)]
+    sd = np.std(pool, axis=0) if pool.shape[0] > 1 else np.ones(chain.shape[2])
+    p = p + 1e-3 * np.where(sd > 0, sd, 1e-6) * rng.standard_normal(p.shape)
+    return p, int(chain.shape[1] - good.size)
+
+
+def _tau(chain: np.ndarray) -> np.ndarray:
+    """Integrated autocorrelation time per parameter (steps); a parameter whose walkers did not
+    move at all gets the chain length (i.e. not converged), never NaN."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tau = emcee.autocorr.integrated_time(chain, quiet=True, tol=0)
+    return np.where(np.isfinite(tau), tau, float(chain.shape[0]))
+
+
+def _progress(cfg) -> bool:
+    if cfg.progress is not None:
+        return cfg.progress
+    return sys.stderr.isatty() and os.environ.get("FRICTIONUQ_PROGRESS", "1") != "0"
+
+
+def _moves(cfg: SamplerConfig):
+    de = emcee.moves.DEMove() if cfg.de_gamma is None else emcee.moves.DEMove(gamma0=cfg.de_gamma)
+    return [(de, 0.7), (emcee.moves.DEMove(gamma0=1.0), 0.1), (emcee.moves.DESnookerMove(), 0.2)]
+
+
+COORDS = "frictionuq unbounded logit-of-box coordinates v1"
+
+
+def _open_backend(backend_path, nw, ndim, resume):
+    """(backend, steps already stored). A stored chain is resumed only when it was written in the
+    same coordinates (attribute `coordinates` of the backend's group) and with the same shape."""
+    if backend_path is None:
+        return None, 0
+    backend_path = Path(backend_path)
+    backend_path.parent.mkdir(parents=True, exist_ok=True)
+    if backend_path.exists() and resume:
+        try:
+            be = emcee.backends.HDFBackend(str(backend_path))
+            with be.open() as f:
+                coords = f[be.name].attrs.get("coordinates", "")
+            if be.initialized and be.shape == (nw, ndim) and be.iteration > 0 and coords == COORDS:
+                return be, int(be.iteration)
+        except Exception:            # unreadable / corrupted file: start again
+            pass
+    if backend_path.exists():
+        backend_path.unlink()
+    be = emcee.backends.HDFBackend(str(backend_path))
+    be.reset(nw, ndim)
+    with be.open("a") as f:
+        f[be.name].attrs["coordinates"] = COORDS
+    return be, 0
+
+
+def check(chain: np.ndarray, cfg: SamplerConfig) -> dict:
+    """Convergence statistics of a kept chain (steps, walkers, ndim)."""
+    tau = _tau(chain)
+    diag = azadapter.diagnostics(np.transpose(chain, (1, 0, 2)))
+    return {"tau": tau, "tau_max": float(np.max(tau)), "r_hat_max": float(np.max(diag["r_hat"])),
+            "ess_min": float(min(np.min(diag["ess_bulk"]), np.min(diag["ess_tail"]))),
+            "r_hat": diag["r_hat"]}
+
+
+def sample(logpost: LogPosterior, scales: RecordScales, seed: int,
+           backend_path: str | Path | None = None,
+           cfg: SamplerConfig | None = None, resume: bool = True, log=None) -> SampleResult:
+    """Run the full sampler; see the module docstring."""
+    cfg = cfg or SamplerConfig()
+    log = log or (lambda msg: None)
+    sp = logpost.space
+    ndim = sp.ndim
+    nw = _nwalkers(cfg, ndim)
+    t0 = time.perf_counter()
+    rng = np.random.default_rng(seed)
+    target = UnboundedPosterior(logpost)
+    backend, resumed = _open_backend(backend_path, nw, ndim, resume)
+
+    theta_map, lp_map, map_info = find_map(logpost, scales, rng, cfg.n_random_starts,
+                                           cfg.n_prior_starts, log=log)
+    log(f"MAP log-posterior {lp_map:.6g}")
+    burn_in_steps = 0
+    state = None
+    if resumed:
+        log(f"resuming from stored step {resumed}")
+    else:
+        cov = gauss_newton_cov(logpost, theta_map)
+        state = sp.to_u(initial_ball(theta_map, cov, nw, rng, sp))
+        prev = -np.inf
+        for rnd in range(max(cfg.burn_rounds, cfg.burn_max_rounds)):
+            bs = emcee.EnsembleSampler(nw, ndim, target, vectorize=True, moves=_moves(cfg))
+            bs.random_state = np.random.RandomState([seed % (2**32), rnd]).get_state()
+            bs.run_mcmc(state, cfg.burn_steps, progress=_progress(cfg), skip_initial_state_check=True)
+            lpc = bs.get_log_prob()
+            state, stuck = reinitialise(bs.get_chain(), lpc, nw, rng)
+            burn_in_steps += cfg.burn_steps
+            level = float(np.median(lpc[cfg.burn_steps // 2:]))
+            log(f"burn-in round {rnd + 1}: acceptance {np.mean(bs.acceptance_fraction):.2f}, "
+                f"median log-posterior (u) {level:.6g} (best {np.max(lpc):.6g}), "
+                f"{stuck} stuck walkers dropped")
+            # still climbing (the median walker gained more than the posterior's own spread of
+            # the log density, sqrt(D/2)) or walkers stuck: another round
+            settled = stuck == 0 and level - prev < np.sqrt(ndim / 2.0)
+            prev = level
+            if rnd + 1 >= cfg.burn_rounds and settled:
+                break
+
+    sampler = emcee.EnsembleSampler(nw, ndim, target, vectorize=True, moves=_moves(cfg), backend=backend)
+    if not resumed:
+        sampler.random_state = np.random.RandomState(seed % (2**32)).get_state()
+
+    history = []
+    prev_tau = None
+    converged = False
+    n_done = resumed
+    while n_done < cfg.max_steps:
+        n = min(cfg.chunk, cfg.max_steps - n_done)
+        sampler.run_mcmc(state, n, progress=_progress(cfg), skip_initial_state_check=True)
+        state = None
+        n_done = int(sampler.iteration)
+        if n_done < cfg.min_steps:
+            continue
+        burn = int(n_done * cfg.discard_fraction)
+        c = check(sampler.get_chain(discard=burn), cfg)
+        h = {"steps": n_done, "tau_max": c["tau_max"],
+             "acceptance": float(np.mean(sampler.acceptance_fraction)),
+             "r_hat_max": c["r_hat_max"], "ess_min": c["ess_min"],
+             "worst": sp.names[int(np.argmax(c["r_hat"]))]}
+        history.append(h)
+        log(f"step {n_done}: max tau {c['tau_max']:.1f} steps, R-hat max {h['r_hat_max']:.3f} "
+            f"({h['worst']}), ESS min {h['ess_min']:.0f}, acceptance {h['acceptance']:.2f}")
+        kept = n_done - burn
+        tau_ok = prev_tau is not None and kept > cfg.tau_factor * c["tau_max"] and \
+            abs(c["tau_max"] - prev_tau) / c["tau_max"] < cfg.tau_rtol
+        prev_tau = c["tau_max"]
+        if tau_ok and h["r_hat_max"] <= cfg.r_hat_max and h["ess_min"] >= cfg.ess_min:
+            converged = True
+            break
+
+    burn = int(n_done * cfg.discard_fraction)
+    tau = _tau(sampler.get_chain(discard=burn))
+    thin = int(cfg.thin_output or max(1, int(np.max(tau) / 4)))
+    u = sampler.get_chain(discard=burn, thin=thin)
+    theta = sp.from_u(u)
+    lp_u = sampler.get_log_prob(discard=burn, thin=thin)
+    lp_theta = lp_u - sp.log_jac_u(u.reshape(-1, ndim)).reshape(lp_u.shape)
+    return SampleResult(
+        chain=theta, log_prob=lp_theta, blobs=sampler.get_blobs(discard=burn, thin=thin),
+        tau=np.asarray(tau, float), n_steps=n_done, burn=burn, thin=thin,
+        acceptance=float(np.mean(sampler.acceptance_fraction)), converged_tau=converged,
+        theta_map=theta_map, log_prob_map=lp_map, n_evals=int(logpost.n_evals),
+        seconds=time.perf_counter() - t0, burn_in_steps=burn_in_steps, history=history)

@@ -1,0 +1,65 @@
+"""Sampler helpers (fast): burn-in re-initialisation, walker count, JSON-safe fit records and the
+prior-bound flag of the identifiability report."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from frictionuq.infer.fit import jsonable
+from frictionuq.infer.outputs import identifiability
+from frictionuq.infer.priors import Prior
+from frictionuq.infer.sampler import SamplerConfig, _nwalkers, reinitialise
+from frictionuq.infer.space import Space
+
+
+def test_reinitialise_draws_distinct_states_and_drops_stuck_walkers():
+    rng = np.random.default_rng(0)
+    steps, W, D = 40, 16, 3
+    chain = rng.normal(size=(steps, W, D))
+    chain[:, 5] = 100.0                      # a stuck walker: never moves, far below the others
+    chain[10:20, 3] = chain[10, 3]           # rejected proposals repeat a state
+    lp = np.full((steps, W), -1.0)
+    lp[:, 5] = -1e4
+    p, stuck = reinitialise(chain, lp, W, rng)
+    assert stuck == 1
+    assert p.shape == (W, D)
+    assert not np.any(np.all(p == 100.0, axis=1))
+    assert np.unique(p, axis=0).shape[0] == W          # no two walkers identical
+
+
+def test_reinitialise_with_a_tiny_pool_still_gives_distinct_walkers():
+    rng = np.random.default_rng(1)
+    chain = np.repeat(rng.normal(size=(1, 8, 2)), 4, axis=0)   # nobody moved
+    p, _ = reinitialise(chain, np.zeros((4, 8)), 20, rng)
+    assert p.shape == (20, 2) and np.unique(p, axis=0).shape[0] == 20
+
+
+def test_walker_count_needs_more_than_twice_ndim():
+    assert _nwalkers(SamplerConfig(), 14) == 32
+    assert _nwalkers(SamplerConfig(), 20) == 44
+    with pytest.raises(ValueError, match="more than 2 x ndim"):
+        _nwalkers(SamplerConfig(nwalkers=20), 10)
+
+
+def test_jsonable_turns_numpy_scalars_into_json():
+    rec = {"steps": np.int64(5), "acc": np.float32(0.5), "ok": np.bool_(True),
+           "tau": np.arange(3.0), "nested": [{"n": np.int32(2)}], 3: "key"}
+    out = json.loads(json.dumps(jsonable(rec)))
+    assert out == {"steps": 5, "acc": 0.5, "ok": True, "tau": [0.0, 1.0, 2.0],
+                   "nested": [{"n": 2}], "3": "key"}
+
+
+def test_identifiability_flags_posteriors_at_a_prior_bound():
+    pri = {"fc_fwd": Prior("fc_fwd", "uniform", 0.0, 10.0), "d3": Prior("d3", "uniform", 0.0, 1.0),
+           "v_s": Prior("v_s", "uniform", 0.0, 1.0),
+           "sigma_noise": Prior("sigma_noise", "loguniform", 0.1, 10.0)}
+    fixed = {n: 1.0 for n in ("fc_bwd", "fs_fwd", "fs_bwd", "sigma0", "sigma1", "sigma2", "k2",
+                              "d2", "k3", "w")}
+    sp = Space("three_stage", (), "iid", pri, fixed)
+    rng = np.random.default_rng(2)
+    th = np.stack([rng.normal(5, 0.1, 4000), rng.uniform(0, 0.005, 4000),
+                   1 - rng.uniform(0, 0.005, 4000)], axis=1)
+    rep = identifiability(sp, {"theta": th.reshape(2, 2000, 3)})
+    assert rep["at_prior_bound"] == {"d3": "lower", "v_s": "upper"}
