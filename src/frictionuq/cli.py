@@ -29,6 +29,25 @@ def _cmd_twin(a):
     print(f"wrote the {a.device.upper()} twin campaign to {a.out}: {len(m['tests'])} tests, seed {a.seed}")
 
 
+def _cmd_fit(a):
+    from .infer.fit import FitConfig, fit_campaign
+    from .infer.sampler import SamplerConfig
+    samp = SamplerConfig(**({"max_steps": a.max_steps} if a.max_steps else {}))
+    cfg = FitConfig(model=a.model, effects=tuple(a.effect or ()), likelihood=a.likelihood,
+                    seed=a.seed, sampler=samp, tests=tuple(a.test) if a.test else None,
+                    kinds=tuple(a.kind) if a.kind else None)
+    s = fit_campaign(a.campaign, a.out, by=a.by, config=cfg, log=lambda m: print(m, file=sys.stderr))
+    bad = [f["id"] for f in s["fits"] if not f["converged"]]
+    print(f"wrote {len(s['fits'])} fit(s) of campaign {s['campaign']!r} to {a.out} (summary.json, "
+          f"<fit>/posterior.nc, <fit>/fit.json; SI units)")
+    for f in s["fits"]:
+        print(f"  {f['id']}: {'converged' if f['converged'] else 'NOT converged'}, "
+              f"RMSE {f['rmse']:.4g} N")
+    if bad:
+        print(f"not converged (R-hat > 1.01 or ESS < 400 for some parameter): {', '.join(bad)}")
+        return 1
+
+
 def _cmd_table(a):
     from .quicklook import campaign_table
     print(campaign_table(a.campaign, published=a.published, eps=a.eps))
@@ -59,6 +78,22 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--seed", type=int, default=2016)
     s.set_defaults(func=_cmd_twin)
 
+    s = sub.add_parser("fit", help="Bayesian calibration (emcee): posteriors per applied force or per test")
+    s.add_argument("campaign", help="campaign folder or ingested folder")
+    s.add_argument("--out", required=True, help="output folder: summary.json and one folder per fit")
+    s.add_argument("--by", choices=["applied", "test"], default="applied",
+                   help="one joint fit per applied force (default) or one per test")
+    s.add_argument("--model", choices=["three_stage", "lugre"], default="three_stage")
+    s.add_argument("--effect", action="append", metavar="NAME",
+                   help="add an effect of the library (repeatable)")
+    s.add_argument("--likelihood", choices=["iid", "ar1"], default="ar1")
+    s.add_argument("--seed", type=int, default=1)
+    s.add_argument("--test", action="append", metavar="ID", help="only this test (repeatable)")
+    s.add_argument("--kind", action="append", choices=["harmonic", "earthquake", "other"],
+                   help="only tests of this kind (repeatable)")
+    s.add_argument("--max-steps", type=int, default=None, help="cap on stored sampler steps")
+    s.set_defaults(func=_cmd_fit)
+
     s = sub.add_parser("table", help="per-test table of a campaign, with a published-parameter simulation")
     s.add_argument("campaign", help="campaign folder or ingested folder")
     s.add_argument("--published", choices=["brfd", "mfd", "none"], default="none",
@@ -72,7 +107,7 @@ def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        args.func(args)
+        code = args.func(args)
     except BrokenPipeError:           # output piped into `head` etc.: stop quietly
         import os
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
@@ -85,7 +120,7 @@ def main(argv=None) -> int:
         msg = " ".join(str(e).split())
         print(f"frictionuq: error: {msg}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    return 0
+    return int(code or 0)
 
 
 if __name__ == "__main__":
