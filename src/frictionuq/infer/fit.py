@@ -81,6 +81,10 @@ def _fmt_applied(value_si: float, unit: str) -> str:
 def plan(campaign, by: str = "applied", config: FitConfig | None = None) -> list[FitSpec]:
     """The fits of a campaign: one per applied force (default) or one per test."""
     config = config or FitConfig()
+    try:    # unknown effects, or effects the model cannot carry: refused before any work
+        P.check_effects({e: {} for e in config.effects}, config.model)
+    except ValueError as e:
+        raise InputError(f"fit: {e}") from None
     tests = [t for t in campaign.tests
              if (config.kinds is None or t.kind in config.kinds)
              and (config.tests is None or t.id in config.tests)]
