@@ -76,3 +76,17 @@ def test_default_eps_on_real_arts_record(name):
     assert count_reversals(x, 0.0) > 3 * ref.size
     assert got.size == ref.size
     assert np.max(np.abs(got - ref)) < 20     # same reversals, within 20 ms
+
+
+def test_ar1_from_normals():
+    """The one AR(1) generator (twins and posterior predictive): the recursion exactly, per-path
+    parameters, and the stationary marginal sd and lag-1 correlation."""
+    from frictionuq.noise import ar1_from_normals
+    z = np.random.default_rng(5).standard_normal((3, 200_000))
+    phi, sd = np.array([0.0, 0.5, 0.95]), np.array([1.0, 2.0, 0.3])
+    y = ar1_from_normals(z, phi, sd)
+    for i in range(3):
+        assert y[i, 0] == pytest.approx(sd[i] * z[i, 0])
+        np.testing.assert_allclose(y[i, 1:10], phi[i] * y[i, :9] + sd[i] * np.sqrt(1 - phi[i] ** 2) * z[i, 1:10])
+        assert np.std(y[i]) == pytest.approx(sd[i], rel=0.02)
+        assert np.corrcoef(y[i, 1:], y[i, :-1])[0, 1] == pytest.approx(phi[i], abs=0.01)

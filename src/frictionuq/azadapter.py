@@ -6,8 +6,6 @@ tables or figures back, so an ArviZ API change touches this file only. ArviZ is 
 """
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -34,17 +32,10 @@ def build(posterior: dict, *, sample_stats: dict | None = None, log_likelihood: 
 
 def save(dt, path) -> Path:
     """Write a DataTree to netCDF atomically (temporary file, then rename)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        dt.to_netcdf(tmp, engine="h5netcdf")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    from .atomic import replacing
+    with replacing(path) as tmp:
+        dt.to_netcdf(str(tmp), engine="h5netcdf")
+    return Path(path)
 
 
 def load(path):

@@ -29,6 +29,7 @@ from math import comb, sqrt
 
 import numpy as np
 from numba import njit
+from scipy.signal import lfilter
 
 ORDER = 4
 EPS_MULTIPLIER = 8.0
@@ -75,3 +76,20 @@ def reversal_indices(x, eps):
 def count_reversals(x, eps) -> int:
     """Number of reversals the kernel's detector sees in x with dead-band eps."""
     return int(reversal_indices(np.asarray(x, dtype=float), float(eps)).size)
+
+
+def ar1_from_normals(z, phi, sd) -> np.ndarray:
+    """Stationary AR(1) paths along the last axis of standard normals `z` (..., n): marginal sd
+    `sd`, lag-1 correlation `phi` (scalars, or one per path: shape z.shape[:-1]).
+    y[0] = sd z[0], y[k] = phi y[k-1] + sd sqrt(1 - phi^2) z[k]. The caller draws `z`, so its
+    random stream (and draw order) stays its own."""
+    z = np.array(z, dtype=float)
+    phi_a, sd_a = np.broadcast_to(phi, z.shape[:-1]), np.broadcast_to(sd, z.shape[:-1])
+    out = np.empty_like(z)
+    for idx in np.ndindex(z.shape[:-1]):
+        ph, s = float(phi_a[idx]), float(sd_a[idx])
+        c = s * np.sqrt(1.0 - ph * ph)
+        e = z[idx].copy()
+        e[0] /= np.sqrt(1.0 - ph * ph)
+        out[idx] = lfilter([c], [1.0, -ph], e)
+    return out

@@ -32,12 +32,12 @@ import zlib
 from pathlib import Path
 
 import numpy as np
-from scipy.signal import lfilter
 
 from . import __version__, published as pub
 from .atomic import output_dir
 from .groundmotion import RECORDS, displacement_history, ground_motions_dir, load_record
 from .model import simulate
+from .noise import ar1_from_normals
 from .units import from_si, to_si
 
 FLOAT_FORMAT = "%.7g"
@@ -141,11 +141,8 @@ def earthquake_drive(record: str, peak_m: float, fs: float = FS_HZ, root=None):
 
 
 def _ar1(rng, n: int, phi: float, sd: float) -> np.ndarray:
-    """Stationary AR(1) with marginal sd `sd`: y[0] ~ N(0, sd^2), y[k] = phi y[k-1] + e[k]."""
-    e = rng.standard_normal(n)
-    c = sd * np.sqrt(1.0 - phi * phi)
-    e[0] /= np.sqrt(1.0 - phi * phi)
-    return lfilter([c], [1.0, -phi], e)
+    """Stationary AR(1) with marginal sd `sd` from the test's stream (frictionuq.noise)."""
+    return ar1_from_normals(rng.standard_normal(n), phi, sd)
 
 
 def stream(seed: int, test_id: str) -> np.random.Generator:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import azadapter
+from ..noise import ar1_from_normals
 from . import noisemodel
 
 WEAK_CONTRACTION = 0.5       # posterior sd / prior sd above this: "close to the prior"
@@ -43,14 +44,7 @@ def _draw_args(logpost) -> dict:
 
 def ar1_noise(sigma, phi, n, rng) -> np.ndarray:
     """Stationary AR(1) noise paths (S, n) with marginal sd sigma (S,) and correlation phi (S,)."""
-    S = sigma.size
-    z = rng.standard_normal((S, n))
-    e = np.empty((S, n))
-    e[:, 0] = sigma * z[:, 0]
-    innov = sigma * np.sqrt(1 - phi**2)
-    for k in range(1, n):
-        e[:, k] = phi * e[:, k - 1] + innov * z[:, k]
-    return e
+    return ar1_from_normals(rng.standard_normal((np.size(sigma), n)), phi, sigma)
 
 
 def predictive(logpost, post, n_draws: int, rng) -> dict:
