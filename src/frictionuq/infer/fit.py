@@ -7,6 +7,8 @@ Layout of an output folder:
     <fit id>/posterior.nc         ArviZ DataTree: posterior, sample_stats, observed_data,
                                   log_likelihood (per test), posterior_predictive
     <fit id>/fit.json             configuration, priors, seed, MAP, sampler record, convergence
+    law.json                      with --by applied and 2+ levels: the force-dependence law
+                                  (frictionuq.infer.law)
 """
 from __future__ import annotations
 
@@ -183,7 +185,15 @@ def fit_campaign(campaign_path, out_dir, by: str = "applied", config: FitConfig 
     fits = [run_fit(s, out_dir, camp.name, resume, log) for s in specs]
     summary = {"package_version": __version__, "campaign": camp.name,
                "campaign_path": str(campaign_path), "by": by,
+               "units": {"applied": camp.units.get("applied", "N"),
+                         "note": "every value in this file is SI (N, m, s, Pa); `applied` names "
+                                 "the campaign's unit for the applied force, used by the CLI"},
                "config": (config or FitConfig()).to_json(), "fits": fits}
     atomic.write_json(Path(out_dir) / "summary.json", jsonable(summary))
+    if by == "applied" and len(fits) >= 2:
+        from .law import fit_law
+        doc = fit_law(out_dir, seed=(config or FitConfig()).seed, log=log or (lambda m: None))
+        summary["law"] = {"file": "law.json", "family": doc["family"]}
+        atomic.write_json(Path(out_dir) / "summary.json", jsonable(summary))
     return summary
 
