@@ -48,9 +48,59 @@ def _cmd_fit(a):
         return 1
 
 
+def _cmd_law(a):
+    from .infer.law import fit_law
+    doc = fit_law(a.fit_dir, family=a.family, seed=a.seed, log=lambda m: print(m, file=sys.stderr))
+    print(f"wrote {a.fit_dir}/law.json: family {doc['family']} for {', '.join(doc['force_dependent'])} "
+          f"(other parameters shared), {len(doc['levels'])} applied forces")
+    for fam, c in doc["comparison"].items():
+        print(f"  {fam:<11} held-out ELPD {c['elpd']:9.2f} nats (SE {c['se']:.2f})")
+
+
+def _cmd_validate(a):
+    from .validate import validate
+    doc = validate(a.fit_dir, a.campaign, a.test, a.out, n_draws=a.draws, seed=a.seed,
+                   log=lambda m: print(m, file=sys.stderr))
+    print(f"wrote {a.out}/validation.json (and per test <id>.bands.csv, <id>.png)")
+    print(f"{'test':<34}{'source':<26}{'cover95':>8}{'cover50':>8}{'RMSE N':>10}{'NRMSE':>8}")
+    for r in doc["tests"]:
+        print(f"{r['test']:<34}{r['draws_source'][:25]:<26}{r['coverage95']:8.3f}{r['coverage50']:8.3f}"
+              f"{r['rmse_N']:10.4g}{r['nrmse']:8.4f}")
+
+
 def _cmd_table(a):
     from .quicklook import campaign_table
     print(campaign_table(a.campaign, published=a.published, eps=a.eps))
+
+
+def _harmonic_arg(text: str) -> tuple[float, float]:
+    from .errors import InputError
+    parts = text.split(",")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        return float(parts[0]), float(parts[1])
+    except ValueError:
+        raise InputError(f"--harmonic {text!r}: expected AMP_M,FREQ_HZ (two numbers, e.g. 0.0254,0.2)") from None
+
+
+def _cmd_predict(a):
+    from .predict import write_prediction
+    m = write_prediction(a.fit_dir, a.out, input_csv=a.input,
+                         harmonic=_harmonic_arg(a.harmonic) if a.harmonic else None,
+                         applied=a.applied, n_draws=a.draws, seed=a.seed,
+                         include_offset=a.include_offset)
+    ap = m["applied"]
+    print(f"wrote {a.out}: bands.csv, cycles.csv, prediction.json at applied {ap['value']:g} "
+          f"{ap['unit']} ({m['draws_source']}, {m['n_draws']} draws; time s, displacement m, "
+          "force N, energy J)")
+
+
+def _cmd_advantage(a):
+    from .advantage import format_table, write_advantage
+    df = write_advantage(a.fit_dir, a.out)
+    print(format_table(df))
+    print(f"wrote {a.out or a.fit_dir}/advantage.csv and advantage.json")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -94,12 +144,49 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--max-steps", type=int, default=None, help="cap on stored sampler steps")
     s.set_defaults(func=_cmd_fit)
 
+    s = sub.add_parser("law", help="fit the force-dependence law on a `fit --by applied` folder")
+    s.add_argument("fit_dir", help="output folder of `frictionuq fit --by applied`")
+    s.add_argument("--family", default="auto", choices=["auto", "linear", "threshold", "saturating"],
+                   help="law of the friction forces and sigma0 (auto: best held-out ELPD)")
+    s.add_argument("--seed", type=int, default=1)
+    s.set_defaults(func=_cmd_law)
+
+    s = sub.add_parser("validate", help="predict held-out measured tests from a fit and score the bands")
+    s.add_argument("fit_dir", metavar="FIT_DIR", help="output folder of `frictionuq fit`")
+    s.add_argument("campaign", help="campaign folder holding the held-out tests")
+    s.add_argument("--test", action="append", required=True, metavar="ID",
+                   help="held-out test id (repeatable)")
+    s.add_argument("--out", required=True, help="output folder: validation.json, bands, figures")
+    s.add_argument("--draws", type=int, default=400)
+    s.add_argument("--seed", type=int, default=1)
+    s.set_defaults(func=_cmd_validate)
+
     s = sub.add_parser("table", help="per-test table of a campaign, with a published-parameter simulation")
     s.add_argument("campaign", help="campaign folder or ingested folder")
     s.add_argument("--published", choices=["brfd", "mfd", "none"], default="none",
                    help="simulate each test with the paper's parameters at the nearest applied level")
     s.add_argument("--eps", default="auto", help="reversal dead-band in m, or 'auto' (estimated)")
     s.set_defaults(func=_cmd_table)
+
+    s = sub.add_parser("predict", help="posterior predictive force bands for a new drive at an applied force")
+    s.add_argument("fit_dir", metavar="FIT_DIR", help="output folder of `frictionuq fit`")
+    g = s.add_mutually_exclusive_group(required=True)
+    g.add_argument("--input", metavar="X.csv", help="CSV with columns time (s), displacement (m)")
+    g.add_argument("--harmonic", metavar="AMP_M,FREQ_HZ", help="clean sine: 3 cycles from x = 0")
+    s.add_argument("--applied", required=True,
+                   help="applied force (or pressure), in the fitted campaign's applied unit")
+    s.add_argument("--out", required=True, help="output folder (replaced atomically)")
+    s.add_argument("--draws", type=int, default=400, help="posterior draws (default 400)")
+    s.add_argument("--seed", type=int, default=1)
+    s.add_argument("--include-offset", action="store_true",
+                   help="add the fitted load-cell offset to the noisy bands (default: excluded)")
+    s.set_defaults(func=_cmd_predict)
+
+    s = sub.add_parser("advantage", help="mechanical advantage C and friction coefficient mu per applied force")
+    s.add_argument("fit_dir", metavar="FIT_DIR", help="output folder of `frictionuq fit`")
+    s.add_argument("--out", default=None, help="folder for advantage.csv/.json (default FIT_DIR)")
+    s.set_defaults(func=_cmd_advantage)
+
     return p
 
 

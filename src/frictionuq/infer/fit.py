@@ -144,6 +144,10 @@ def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True
     records, scales, space, logpost = prepare(spec)
     log(f"fit {spec.id}: {len(records)} tests, {sum(r.n for r in records)} samples after decimation "
         f"(factors {[r.q for r in records]}), {space.ndim} free parameters")
+    from .priorpred import prior_predictive
+    ppc = prior_predictive(logpost, n=200, seed=spec.config.seed)
+    log(f"fit {spec.id}: prior predictive check {'passed' if ppc['passed'] else 'FAILED'} "
+        "(measured peak, trough and energy inside the central 98 % of the prior predictive)")
     res = sample(logpost, scales, spec.config.seed, fdir / "chain.h5", spec.config.sampler,
                  resume=resume, log=lambda m: log(f"fit {spec.id}: {m}"))
     rng = np.random.default_rng([spec.config.seed, 7])
@@ -156,6 +160,7 @@ def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True
     azadapter.save(dt, fdir / "posterior.nc")
     entry = outputs.summary_entry(spec, logpost, res, dt, post, pred)
     entry["seconds"] = time.perf_counter() - t0
+    entry["prior_predictive_passed"] = ppc["passed"]
     record = {"package_version": __version__, "campaign": campaign_name, "fit": spec.id,
               "tests": [t.id for t in spec.tests], "seed": spec.config.seed,
               "config": spec.config.to_json(), "space": space.to_json(), "scales": scales.to_json(),
@@ -168,7 +173,7 @@ def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True
                           "converged_tau": res.converged_tau, "model_evaluations": res.n_evals,
                           "seconds": res.seconds, "history": res.history},
               "map": dict(zip(space.names, map(float, space.to_values(res.theta_map)))),
-              "log_prob_map": res.log_prob_map, "summary": entry}
+              "log_prob_map": res.log_prob_map, "prior_predictive": ppc, "summary": entry}
     atomic.write_json(fdir / "fit.json", jsonable(record))
     log(f"fit {spec.id}: {'converged' if entry['converged'] else 'NOT converged'} "
         f"after {res.n_steps} steps ({entry['seconds']:.0f} s), rmse {entry['rmse']:.4g} N")

@@ -1,0 +1,75 @@
+"""Calibration benchmark (issue 3 item 13): full fits to the convergence criteria, side by side.
+
+    .venv/bin/python benchmarks/bench_fit.py [--case twin|arts-d1|all] [--out DIR]
+
+Cases:
+  * `twin`     one applied force of the BRFD twin (data/brfd-twin, 267 N, all its tests: four
+               harmonics 0.05-0.5 Hz), joint fit, default configuration;
+  * `arts-d1`  all of data/brfd-arts-d1 (12 real tests, six applied forces), one joint fit per
+               applied force plus the force-dependence law.
+For each fit it prints wall time, model evaluations, evaluations per second, the smallest bulk
+ESS and the largest R-hat over the parameters, effective samples per second (smallest bulk ESS /
+wall time) and whether it met R-hat <= 1.01 and ESS >= 400 for every parameter.
+Targets: under 2 minutes for the twin force level, under 10 minutes for all of brfd-arts-d1, on
+the 2-core machine. Run it on a quiet machine; the figures are in the README.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import tempfile
+import time
+from pathlib import Path
+
+import frictionuq
+from frictionuq.infer.fit import FitConfig, fit_campaign
+from frictionuq.infer.sampler import SamplerConfig
+
+ROOT = Path(__file__).resolve().parents[1]
+CASES = {
+    "twin": (ROOT / "data/brfd-twin", {"tests": ("h-267N-0.05Hz", "h-267N-0.1Hz", "h-267N-0.2Hz",
+                                                 "h-267N-0.5Hz")}, 120.0),
+    "arts-d1": (ROOT / "data/brfd-arts-d1", {}, 600.0),
+}
+
+
+def run(case: str, out: Path) -> dict:
+    path, sel, target = CASES[case]
+    cfg = FitConfig(tests=sel.get("tests"), sampler=SamplerConfig(progress=False))
+    t0 = time.perf_counter()
+    s = fit_campaign(path, out / case, by="applied", config=cfg)
+    wall = time.perf_counter() - t0
+    rows = []
+    for f in s["fits"]:
+        free = {n: p for n, p in f["parameters"].items() if "fixed" not in p}
+        ess = min(p["ess_bulk"] for p in free.values())
+        rhat = max(p["r_hat"] for p in free.values())
+        rows.append((f["id"], f["seconds"], f["model_evaluations"], ess, rhat, f["converged"],
+                     f["sampler_steps"], f["tau_max"]))
+    return {"case": case, "wall": wall, "target": target, "rows": rows}
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--case", choices=["twin", "arts-d1", "all"], default="all")
+    ap.add_argument("--out", default=None, help="keep the fit outputs here (default: temporary)")
+    a = ap.parse_args(argv)
+    print(f"frictionuq {frictionuq.__version__}, Python {platform.python_version()}, "
+          f"{os.cpu_count()} cores")
+    cases = ["twin", "arts-d1"] if a.case == "all" else [a.case]
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(a.out) if a.out else Path(tmp)
+        results = [run(c, out) for c in cases]
+    print(f"{'fit':<28}{'wall s':>8}{'evals':>10}{'evals/s':>9}{'steps':>8}{'tau':>7}"
+          f"{'ESS min':>9}{'R-hat':>7}{'ESS/s':>7}  converged")
+    for r in results:
+        for fid, sec, ev, ess, rhat, ok, steps, tau in r["rows"]:
+            print(f"{r['case'] + '/' + fid:<28}{sec:8.0f}{ev:10d}{ev / sec:9.0f}{steps:8d}{tau:7.0f}"
+                  f"{ess:9.0f}{rhat:7.3f}{ess / sec:7.2f}  {'yes' if ok else 'NO'}")
+        print(f"{r['case']:<28}{r['wall']:8.0f} s in all (target {r['target']:.0f} s: "
+              f"{'met' if r['wall'] <= r['target'] else 'NOT met'}, ratio {r['wall'] / r['target']:.2f})")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,385 @@
+"""Posterior predictive of the damper force for a new drive (issue 3, item 7).
+
+Given a fit output folder (`frictionuq fit`, see frictionuq.infer.fit) and an applied force F:
+
+* Parameter draws. If F is a fitted level (summary.json fits[i]["applied"], relative tolerance
+  1e-6), the joint posterior draws of that fit (free parameters from posterior.nc, fixed ones
+  from fit.json), with its model and effects; several fits at the same level (`fit --by test`)
+  are pooled with equal weight. Otherwise the force-dependence law of the folder
+  (frictionuq.infer.law.draws_at); without a law the request is refused.
+* Measurement noise. Each draw takes the noise (sigma_noise, noise_phi) of one of its fit's
+  tests, picked at random, from the same posterior draw. With the law, the noise comes from the
+  posterior of the fitted level nearest in log force (the law describes the model parameters
+  only). noise_phi was estimated at the decimated rate of each record (fit.json
+  records[].rate_hz); reading the AR(1) noise as a sampled Ornstein-Uhlenbeck process, the
+  correlation at the prediction's median step dt is phi ** (dt * rate_hz), the marginal sd
+  unchanged.
+* force_offset is a load-cell artefact, not damper force: it is never in the noise-free
+  ("_model") bands, and in the noisy bands only with include_offset=True (default False: the
+  noisy bands then describe what a zeroed load cell would read).
+* Reversal dead band: eps = noise.default_eps(x) for a measured record (CSV input), 0 for the
+  clean harmonic.
+* Cycles: the harmonic is generated as whole periods starting at x = 0 moving up, so its cycles
+  are the periods; for a record, a cycle runs from one turning point to the next turning point in
+  the same direction (every second reversal of the kernel's detector with the record's eps);
+  a record with fewer than 3 reversals has no complete cycle (empty table). Energy per cycle is
+  the loop integral of F dx (trapezoid rule) of the noise-free model force. For a periodic
+  drive the loop closes and this is the energy dissipated; for an irregular record (a ground
+  motion) a "cycle" need not return to its starting displacement, and the integral is the net
+  work done on the device over it, which also contains the change of the energy stored in the
+  backlash and bristles (a short cycle can then come out slightly negative).
+
+Everything is SI (s, m, N, J); `applied` is given in the campaign's own unit at the edges.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from . import atomic, params as P
+from .errors import InputError
+from .fitdir import FitPosterior, campaign_applied_unit, fitted_levels, load_posterior, load_summary
+
+REL_TOL = 1e-6
+QUANTILES = (2.5, 25.0, 50.0, 75.0, 97.5)
+HARMONIC_CYCLES = 3
+HARMONIC_SAMPLES_PER_CYCLE = 200
+BAND_COLUMNS = ["time", "displacement",
+                "force_median", "force_q2.5", "force_q25", "force_q75", "force_q97.5",
+                "force_model_median", "force_model_q2.5", "force_model_q25", "force_model_q75",
+                "force_model_q97.5"]
+CYCLE_COLUMNS = ["cycle", "t_start", "t_end", "peak_force_median", "peak_force_q2.5",
+                 "peak_force_q97.5", "energy_median", "energy_q2.5", "energy_q97.5"]
+LIKELIHOOD_ONLY = set(P.LIKELIHOOD_NAMES)
+#: backlash parameters unused by the pure LuGre model (as in infer.space.Space)
+_LUGRE_UNUSED = {"k2": 0.0, "d2": 0.0, "k3": 0.0, "d3": 0.0, "w": 1e-3}
+FLOAT_FORMAT = "%.9g"
+#: samples x draws per (S, N) array: a few such arrays live at once (about 240 MB each)
+MAX_ELEMENTS = 30_000_000
+_NOISE_CHUNK = 32
+
+
+# ---------------------------------------------------------------- parameter draws
+
+@dataclass
+class Draws:
+    """S parameter draws for one prediction, with their measurement noise and offset."""
+    params: dict[str, np.ndarray]      # model parameters (SI), (S,) each
+    model: str
+    effects: tuple[str, ...]
+    offset: np.ndarray                 # (S,) force_offset (N)
+    sigma: np.ndarray                  # (S,) noise marginal sd (N)
+    phi: np.ndarray                    # (S,) noise lag-1 correlation at rate_hz
+    rate_hz: np.ndarray                # (S,)
+    source: str
+    fits: list[str]
+
+    @property
+    def size(self) -> int:
+        return self.offset.size
+
+
+def _take(posts: list[FitPosterior], n: int, rng) -> dict:
+    """n joint draws from a mixture (equal weights) of fits: named parameters (free + fixed),
+    offset and one test's noise per draw."""
+    which = rng.integers(len(posts), size=n) if len(posts) > 1 else np.zeros(n, int)
+    names = set().union(*(set(p.params) | set(p.fixed) for p in posts))
+    out = {k: np.full(n, np.nan) for k in names | {"_sigma", "_phi", "_rate"}}
+    for k, p in enumerate(posts):
+        sel = np.flatnonzero(which == k)
+        if not sel.size:
+            continue
+        idx = rng.choice(p.size, size=sel.size, replace=p.size < sel.size)
+        j = rng.integers(p.sigma.shape[1], size=sel.size)
+        for nm in names:
+            if nm in p.params:
+                out[nm][sel] = p.params[nm][idx]
+            elif nm in p.fixed:
+                out[nm][sel] = p.fixed[nm]
+        out["_sigma"][sel] = p.sigma[idx, j]
+        out["_phi"][sel] = p.phi[idx, j]
+        out["_rate"][sel] = p.rate_hz[j]
+    return out
+
+
+def choose_draws(fit_dir, applied_si: float, n: int, rng, summary: dict | None = None) -> Draws:
+    """n parameter draws at applied force `applied_si` (SI): the posterior of the fit(s) at that
+    level, else the folder's force-dependence law (module docstring)."""
+    summary = summary or load_summary(fit_dir)
+    a = float(applied_si)
+    match = [f for f in summary["fits"] if f.get("applied") is not None
+             and abs(float(f["applied"]) - a) <= REL_TOL * max(abs(float(f["applied"])), 1e-300)]
+    if match:
+        posts = [load_posterior(fit_dir, f["id"]) for f in match]
+        kinds = {(p.model, p.effects) for p in posts}
+        if len(kinds) > 1:
+            raise InputError(f"{fit_dir}: the fits at applied {a:g} (SI) use different models/effects "
+                             f"{sorted(kinds)}; predict from one of them")
+        d = _take(posts, n, rng)
+        ids = [p.id for p in posts]
+        src = f"posterior of fit {ids[0]}" if len(ids) == 1 else \
+            f"posterior of fits {', '.join(ids)} (equal-weight mixture)"
+        params = {k: v for k, v in d.items() if not k.startswith("_") and k not in LIKELIHOOD_ONLY}
+        return Draws(params, posts[0].model, posts[0].effects, d.get("force_offset", np.zeros(n)),
+                     d["_sigma"], d["_phi"], d["_rate"], src, ids)
+    levels = fitted_levels(summary)
+    lv = ", ".join(f"{v:g}" for v in levels) or "none"
+    try:
+        from .infer.law import draws_at
+    except ImportError:
+        raise InputError(f"{fit_dir}: applied force {a:g} (SI) is not a fitted level (fitted: {lv}) "
+                         "and no force-dependence law is available in this version") from None
+    try:
+        params, model, effects = draws_at(fit_dir, a, n, rng)
+    except InputError as e:
+        raise InputError(f"no fitted level at applied force {a:g} (SI) (fitted: {lv}) and no usable "
+                         f"force-dependence law in {fit_dir}: {e}") from None
+    if not levels:
+        raise InputError(f"{fit_dir}: no fit at a single applied force to take the noise from")
+    near = min(levels, key=lambda v: abs(math.log(v) - math.log(a)) if v > 0 and a > 0 else abs(v - a))
+    posts = [load_posterior(fit_dir, f["id"]) for f in summary["fits"]
+             if f.get("applied") is not None and float(f["applied"]) == near]
+    d = _take(posts, n, rng)
+    off = np.asarray(params["force_offset"], float) if "force_offset" in params else \
+        d.get("force_offset", np.zeros(n))
+    params = {k: np.asarray(v, float) for k, v in params.items() if k not in LIKELIHOOD_ONLY}
+    return Draws(params, model, tuple(effects), off, d["_sigma"], d["_phi"], d["_rate"],
+                 "force-dependence law", [p.id for p in posts])
+
+
+def kernel_matrix(params: dict[str, np.ndarray], model: str, effects) -> np.ndarray:
+    """Named draws -> the kernel's parameter matrix (S, len(params.VECTOR_NAMES)): effects
+    off unless listed, listed effects' unnamed parameters at their defaults (as infer.space)."""
+    S = np.size(next(iter(params.values())))
+    M = np.empty((S, len(P.VECTOR_NAMES)))
+    M[:, len(P.BASE_NAMES):] = P.neutral_vector()
+    for eff in effects:
+        for n in P.EFFECTS[eff]:
+            M[:, P.INDEX[n]] = P.PARAMS[n].default
+    for n in P.BASE_NAMES:
+        if n not in params:
+            if model == "lugre" and n in _LUGRE_UNUSED:
+                M[:, P.INDEX[n]] = _LUGRE_UNUSED[n]
+                continue
+            raise InputError(f"the parameter draws lack {n!r} ({P.PARAMS[n].description})")
+    for n, v in params.items():
+        if n in P.INDEX:
+            M[:, P.INDEX[n]] = v
+    return M
+
+
+# ---------------------------------------------------------------- inputs
+
+def harmonic_input(amplitude_m: float, frequency_hz: float, cycles: int = HARMONIC_CYCLES,
+                   samples_per_cycle: int = HARMONIC_SAMPLES_PER_CYCLE) -> tuple[np.ndarray, np.ndarray]:
+    """(t, x) of a clean sine x = A sin(2 pi f t): whole cycles from x = 0 moving up."""
+    for name, v in (("amplitude (m)", amplitude_m), ("frequency (Hz)", frequency_hz)):
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.floating)) or not (
+                math.isfinite(v) and v > 0):
+            raise InputError(f"harmonic input: {name} must be a finite number > 0, got {v!r}")
+    t = np.arange(cycles * samples_per_cycle + 1) / (samples_per_cycle * float(frequency_hz))
+    return t, float(amplitude_m) * np.sin(2 * np.pi * float(frequency_hz) * t)
+
+
+def read_input(path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """(t, x, applied or None) from a CSV with columns time (s), displacement (m) and optionally
+    applied (N or Pa); errors name the file and line."""
+    from .records import check_time, read_csv
+    cols = read_csv(path, {"time": "time", "displacement": "displacement"}, {"applied": "applied"})
+    check_time(path, cols["time"])
+    return cols["time"], cols["displacement"], cols.get("applied")
+
+
+# ---------------------------------------------------------------- bands and cycles
+
+def simulate_draws(t, x, draws: Draws, eps: float, applied_signal=None) -> np.ndarray:
+    """Noise-free model force (S, N) of every draw (no offset)."""
+    from .model import simulate_batch
+    M = kernel_matrix(draws.params, draws.model, draws.effects)
+    try:
+        return simulate_batch(t, x, M, model=draws.model, eps=eps, applied=applied_signal)
+    except InputError:
+        raise
+    except ValueError as e:
+        raise InputError(f"cannot simulate the parameter draws ({draws.source}): {e}") from None
+
+
+def add_noise(F: np.ndarray, draws: Draws, dt: float, rng, include_offset: bool = False) -> np.ndarray:
+    """F plus stationary AR(1) measurement noise of each draw at step dt (module docstring)."""
+    from .noise import ar1_from_normals
+    phi = np.clip(draws.phi, 0.0, 0.999) ** (dt * draws.rate_hz)
+    out = np.array(F, dtype=float)
+    for i in range(0, F.shape[0], _NOISE_CHUNK):          # bounded temporary memory
+        j = min(i + _NOISE_CHUNK, F.shape[0])
+        out[i:j] += ar1_from_normals(rng.standard_normal((j - i, F.shape[1])), phi[i:j], draws.sigma[i:j])
+    if include_offset:
+        out += draws.offset[:, None]
+    return out
+
+
+def band_table(t, x, F_noisy: np.ndarray, F_model: np.ndarray) -> pd.DataFrame:
+    qn = np.percentile(F_noisy, QUANTILES, axis=0)
+    qm = np.percentile(F_model, QUANTILES, axis=0)
+    cols = {"time": np.asarray(t, float), "displacement": np.asarray(x, float)}
+    for pre, q in (("force", qn), ("force_model", qm)):
+        cols[f"{pre}_median"] = q[2]
+        for i, lab in ((0, "2.5"), (1, "25"), (3, "75"), (4, "97.5")):
+            cols[f"{pre}_q{lab}"] = q[i]
+    return pd.DataFrame(cols, columns=BAND_COLUMNS)
+
+
+def cycle_bounds(x, eps: float = 0.0, samples_per_cycle: int | None = None) -> list[tuple[int, int]]:
+    """Sample index pairs (start, end) of the complete cycles: whole periods of a generated
+    harmonic (samples_per_cycle given), else turning point to the next turning point in the same
+    direction."""
+    x = np.asarray(x, float)
+    if samples_per_cycle:
+        n = (x.size - 1) // samples_per_cycle
+        return [(c * samples_per_cycle, (c + 1) * samples_per_cycle) for c in range(n)]
+    from .noise import reversal_indices
+    turn = reversal_indices(x, float(eps)) - 1
+    return [(int(turn[i]), int(turn[i + 2])) for i in range(0, turn.size - 2, 2)]
+
+
+def cycle_table(t, x, F_model: np.ndarray, bounds) -> pd.DataFrame:
+    """Per cycle: peak |F| (N) and dissipated energy (J, trapezoid loop integral of F dx) of the
+    noise-free model force, median and 2.5/97.5 % over draws."""
+    t, x = np.asarray(t, float), np.asarray(x, float)
+    rows = []
+    for c, (i0, i1) in enumerate(bounds, start=1):
+        F = F_model[:, i0:i1 + 1]
+        peak = np.max(np.abs(F), axis=1)
+        energy = np.sum(0.5 * (F[:, 1:] + F[:, :-1]) * np.diff(x[i0:i1 + 1])[None, :], axis=1)
+        pq = np.percentile(peak, (50, 2.5, 97.5))
+        eq = np.percentile(energy, (50, 2.5, 97.5))
+        rows.append([c, t[i0], t[i1], *pq, *eq])
+    return pd.DataFrame(rows, columns=CYCLE_COLUMNS).astype({"cycle": int})
+
+
+@dataclass
+class Prediction:
+    bands: pd.DataFrame
+    cycles: pd.DataFrame
+    draws: Draws
+    eps: float
+    F_model: np.ndarray
+
+
+def predict(fit_dir, applied_si: float, t, x, *, eps: float = 0.0, n_draws: int = 400, seed: int = 1,
+            include_offset: bool = False, applied_signal=None, samples_per_cycle: int | None = None,
+            summary: dict | None = None) -> Prediction:
+    """Posterior predictive bands and per-cycle figures of the force for drive (t, x) (SI) at
+    applied force `applied_si` (SI). samples_per_cycle: set for a generated harmonic."""
+    if isinstance(n_draws, bool) or not isinstance(n_draws, (int, np.integer)) or n_draws < 2:
+        raise InputError(f"number of draws must be an integer >= 2, got {n_draws!r}")
+    if not (math.isfinite(applied_si) and applied_si >= 0):
+        raise InputError(f"applied force must be a finite number >= 0, got {applied_si!r}")
+    t, x = np.asarray(t, float), np.asarray(x, float)
+    if int(n_draws) * t.size > MAX_ELEMENTS:
+        raise InputError(f"{t.size} samples x {n_draws} draws is too large for memory (limit "
+                         f"{MAX_ELEMENTS:.0e} values per array); use at most "
+                         f"{max(MAX_ELEMENTS // t.size, 1)} draws, or a shorter or coarser input")
+    if applied_signal is None and applied_si > 0:
+        applied_signal = np.full(t.size, float(applied_si))    # applied_tracking: neutral
+    rng = np.random.default_rng(seed)
+    draws = choose_draws(fit_dir, applied_si, int(n_draws), rng, summary)
+    Fm = simulate_draws(t, x, draws, eps, applied_signal)
+    Fn = add_noise(Fm, draws, float(np.median(np.diff(t))), rng, include_offset)
+    bounds = cycle_bounds(x, eps, samples_per_cycle)
+    return Prediction(band_table(t, x, Fn, Fm), cycle_table(t, x, Fm, bounds), draws, eps, Fm)
+
+
+# ---------------------------------------------------------------- files
+
+def _check_out(fit_dir: Path, out: Path) -> None:
+    if out.resolve() == fit_dir.resolve():
+        raise InputError(f"--out {out}: must differ from the fit folder")
+    if out.exists():
+        if not out.is_dir():
+            raise InputError(f"--out {out}: exists and is not a folder")
+        if any(out.iterdir()) and not (out / "prediction.json").is_file():
+            raise InputError(f"--out {out}: exists, is not empty and is not a prediction folder; "
+                             "choose a new folder (it would be replaced)")
+
+
+def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied: float,
+                     applied_unit: str | None = None, n_draws: int = 400, seed: int = 1,
+                     include_offset: bool = False) -> dict:
+    """Predict and write out_dir/bands.csv, cycles.csv and prediction.json (the folder is
+    replaced as a whole, atomically). `applied` is in `applied_unit`, by default the fitted
+    campaign's applied unit; harmonic = (amplitude m, frequency Hz). Returns prediction.json."""
+    from . import __version__, units as U
+    from .campaign import sha256_file
+    from .noise import default_eps
+    fit_dir, out_dir = Path(fit_dir), Path(out_dir)
+    if (input_csv is None) == (harmonic is None):
+        raise InputError("give exactly one input: a displacement CSV or a harmonic (amplitude, frequency)")
+    summary = load_summary(fit_dir)
+    _check_out(fit_dir, out_dir)
+    unit, unit_src = (applied_unit, "given") if applied_unit else campaign_applied_unit(fit_dir, summary)
+    try:
+        U.factor("applied", unit)
+    except ValueError as e:
+        raise InputError(f"applied unit: {e}") from None
+    try:
+        value = float(applied)
+    except (TypeError, ValueError):
+        raise InputError(f"applied force: {applied!r} is not a number (give it in {unit})") from None
+    if not (math.isfinite(value) and value >= 0):
+        raise InputError(f"applied force: must be a finite number >= 0 {unit}, got {applied!r}")
+    a_si = float(U.to_si(value, "applied", unit))
+    if input_csv is not None:
+        t, x, sig = read_input(input_csv)
+        try:
+            eps = default_eps(x)
+        except ValueError as e:
+            raise InputError(f"{input_csv}: {e}") from None
+        spc = None
+        inp = {"kind": "record", "file": str(input_csv), "sha256": sha256_file(input_csv),
+               "samples": int(t.size), "duration_s": float(t[-1] - t[0]),
+               "eps_m": eps, "eps_rule": "noise.default_eps (8 x the displacement-noise sd)",
+               "applied_signal": "from the file's `applied` column" if sig is not None else
+               "constant at the applied force"}
+    else:
+        try:
+            amp, freq = harmonic
+        except (TypeError, ValueError):
+            raise InputError(f"harmonic input: expected (amplitude m, frequency Hz), got {harmonic!r}") from None
+        t, x = harmonic_input(amp, freq)
+        sig, eps, spc = None, 0.0, HARMONIC_SAMPLES_PER_CYCLE
+        inp = {"kind": "harmonic", "amplitude_m": float(amp), "frequency_hz": float(freq),
+               "cycles": HARMONIC_CYCLES, "samples_per_cycle": HARMONIC_SAMPLES_PER_CYCLE,
+               "start": "x = 0 moving up (clean sine)", "eps_m": 0.0}
+    pred = predict(fit_dir, a_si, t, x, eps=eps, n_draws=n_draws, seed=seed,
+                   include_offset=include_offset, applied_signal=sig, samples_per_cycle=spc,
+                   summary=summary)
+    meta = {"package_version": __version__, "fit_dir": str(fit_dir), "campaign": summary.get("campaign"),
+            "applied": {"si": a_si, "si_unit": U.si_unit_of_applied(unit), "value": value,
+                        "unit": unit, "unit_source": unit_src},
+            "draws_source": pred.draws.source, "fits": pred.draws.fits, "model": pred.draws.model,
+            "effects": list(pred.draws.effects), "n_draws": int(n_draws), "seed": int(seed),
+            "input": inp, "include_offset": bool(include_offset),
+            "offset": "force_offset (load-cell zero) excluded from force_model_*; "
+                      + ("included in" if include_offset else "excluded from") + " force_*",
+            "noise": "stationary AR(1) per draw: sigma_noise, noise_phi of one of the fit's tests "
+                     + ("(same posterior draw)" if pred.draws.source != "force-dependence law" else
+                        "(a posterior draw of the fitted level nearest in log force, listed in fits)")
+                     + "; phi converted to the input's step as phi ** (dt * rate_hz of the fit "
+                       "record), marginal sd kept",
+            "quantiles": "2.5/25/50/75/97.5 % over draws, pointwise in time",
+            "cycles": "harmonic: whole periods; record: turning point to turning point in the same "
+                      "direction; energy = trapezoid integral of F dx of the noise-free model over "
+                      "the cycle (the dissipated energy for a closed loop; for an irregular record "
+                      "the net work, including the change of stored backlash/bristle energy)",
+            "units": {"time": "s", "displacement": "m", "force": "N", "peak_force": "N",
+                      "energy": "J"},
+            "files": {"bands.csv": BAND_COLUMNS, "cycles.csv": CYCLE_COLUMNS}}
+    with atomic.output_dir(out_dir) as tmp:
+        pred.bands.to_csv(tmp / "bands.csv", index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
+        pred.cycles.to_csv(tmp / "cycles.csv", index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
+        atomic.write_json(tmp / "prediction.json", meta)
+    return meta

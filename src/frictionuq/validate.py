@@ -1,0 +1,103 @@
+"""Validation on held-out measured tests: predict a test the fit never saw and score the bands.
+
+For each held-out test of a campaign: the posterior predictive bands at its applied force (the
+fitted level's posterior, or the force-dependence law when the level was not fitted), driven by
+its measured displacement, with the fitted load-cell offset and measurement noise included (the
+measured force carries both), and scored against the measured force:
+
+* coverage95 / coverage50: fraction of measured samples inside the 95 % / 50 % band (a calibrated
+  predictive band covers about 95 % / 50 %; far less means overconfident);
+* rmse: RMSE of the band's median against the measured force (N);
+* nrmse: rmse / peak-to-peak measured force (dimensionless; stated beside the rmse);
+* rmse_model_offset_free: RMSE after removing the mean residual (the offset), as the `table`
+  command reports for the published model.
+Writes out_dir/validation.json (+ the bands of every test as <test>.bands.csv and a figure
+<test>.png of measured force inside the bands).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from . import atomic
+from .errors import InputError
+
+
+def score(y: np.ndarray, bands) -> dict:
+    """Coverage and errors of a bands table (predict.band_table) against measured force y (N)."""
+    y = np.asarray(y, float)
+    inside95 = (y >= bands["force_q2.5"].to_numpy()) & (y <= bands["force_q97.5"].to_numpy())
+    inside50 = (y >= bands["force_q25"].to_numpy()) & (y <= bands["force_q75"].to_numpy())
+    r = y - bands["force_median"].to_numpy()
+    rmse = float(np.sqrt(np.mean(r**2)))
+    ptp = float(np.ptp(y))
+    return {"coverage95": float(np.mean(inside95)), "coverage50": float(np.mean(inside50)),
+            "rmse_N": rmse, "nrmse": rmse / ptp if ptp > 0 else float("nan"),
+            "rmse_offset_free_N": float(np.std(r)), "peak_to_peak_N": ptp, "samples": int(y.size)}
+
+
+def _figure(path, t, y, bands, title):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(10, 3.2))
+    ax.fill_between(t, bands["force_q2.5"], bands["force_q97.5"], color="C0", alpha=0.25,
+                    lw=0, label="95 % band (with noise)")
+    ax.fill_between(t, bands["force_q25"], bands["force_q75"], color="C0", alpha=0.45, lw=0,
+                    label="50 % band")
+    ax.plot(t, y, color="k", lw=0.5, label="measured")
+    ax.plot(t, bands["force_median"], color="C3", lw=0.7, label="median")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("force (N)")
+    ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=7, ncol=4, loc="upper right")
+    fig.tight_layout()
+    with atomic.replacing(path) as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    plt.close(fig)
+
+
+def validate(fit_dir, campaign_path, test_ids, out_dir, *, n_draws: int = 400, seed: int = 1,
+             figures: bool = True, log=None) -> dict:
+    """Predict each held-out test (ids) of a campaign from a fit folder and score it."""
+    from . import __version__
+    from .campaign import load_campaign
+    from .fitdir import load_summary
+    from .noise import default_eps
+    from .predict import predict
+    log = log or (lambda m: None)
+    camp = load_campaign(campaign_path)
+    summary = load_summary(fit_dir)
+    fitted_tests = {t for f in summary["fits"] for t in f.get("tests", [])}
+    by_id = {t.id: t for t in camp.tests}
+    unknown = [i for i in test_ids if i not in by_id]
+    if unknown:
+        raise InputError(f"{campaign_path}: no test {unknown[0]!r}; tests: {', '.join(by_id)}")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    results = []
+    for tid in test_ids:
+        te = by_id[tid]
+        r = te.record
+        eps = default_eps(r.x)
+        p = predict(fit_dir, te.applied, r.t, r.x, eps=eps, n_draws=n_draws, seed=seed,
+                    include_offset=True, summary=summary)
+        s = score(r.force, p.bands)
+        s.update(test=tid, applied_si=te.applied, kind=te.kind, eps_m=eps,
+                 held_out=tid not in fitted_tests, draws_source=p.draws.source)
+        results.append(s)
+        atomic.write_text(out / f"{tid}.bands.csv", p.bands.to_csv(index=False))
+        if figures:
+            _figure(out / f"{tid}.png", r.t, r.force, p.bands,
+                    f"{camp.name} / {tid}: coverage95 {s['coverage95']:.2f}, NRMSE {s['nrmse']:.3f} "
+                    f"({p.draws.source})")
+        log(f"{tid}: coverage95 {s['coverage95']:.3f}, coverage50 {s['coverage50']:.3f}, "
+            f"RMSE {s['rmse_N']:.4g} N, NRMSE {s['nrmse']:.4f}")
+    doc = {"package_version": __version__, "fit_dir": str(fit_dir), "campaign": camp.name,
+           "campaign_path": str(campaign_path), "seed": seed, "n_draws": n_draws,
+           "units": "force N, applied_si N or Pa, eps m; coverage fractions of samples; nrmse = rmse / "
+                    "peak-to-peak measured force",
+           "tests": results}
+    atomic.write_json(out / "validation.json", doc)
+    return doc
