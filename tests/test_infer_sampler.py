@@ -63,3 +63,46 @@ def test_identifiability_flags_posteriors_at_a_prior_bound():
                    1 - rng.uniform(0, 0.005, 4000)], axis=1)
     rep = identifiability(sp, {"theta": th.reshape(2, 2000, 3)})
     assert rep["at_prior_bound"] == {"d3": "lower", "v_s": "upper"}
+
+
+def test_independence_move_density_and_hastings_ratio():
+    """The move's log q equals the multivariate t log density up to a constant, and its
+    Hastings factor is log q(x) - log q(x')."""
+    from scipy.stats import multivariate_t
+    from frictionuq.infer.sampler import IndependenceMove
+    rng = np.random.default_rng(0)
+    A = rng.standard_normal((4, 4))
+    C, m = A @ A.T + np.eye(4), rng.standard_normal(4)
+    mv = IndependenceMove(m, C, df=5, scale=1.0)
+    ref = multivariate_t(loc=m, shape=C, df=5)
+    x = rng.standard_normal((9, 4))
+    assert np.ptp(ref.logpdf(x) - mv._logq(x)) < 1e-9
+    y, f = mv._propose(x, np.random.RandomState(1))
+    assert np.allclose(f, ref.logpdf(x) - ref.logpdf(y))
+
+
+def test_independence_move_samples_a_correlated_gaussian():
+    """Seeded statistical harness (as emcee's test_proposal): emcee with the independence move
+    (a deliberately mismatched proposal: shifted mean, wrong correlation) plus DE samples a
+    correlated 3-D Gaussian; the sample mean and covariance agree with the truth. The chain has
+    >= 3,000 effective draws; the tolerances are > 5 standard errors, so the false-alarm rate is
+    below 1e-6."""
+    import emcee
+    from frictionuq.infer.sampler import IndependenceMove
+    C = np.array([[1.0, 0.8, 0.1], [0.8, 1.0, 0.3], [0.1, 0.3, 1.0]])
+    P = np.linalg.inv(C)
+
+    def lp(x):
+        return -0.5 * np.einsum("ni,ij,nj->n", x, P, x)
+
+    moves = [(IndependenceMove(np.full(3, 0.3), np.eye(3) * 1.5), 0.5), (emcee.moves.DEMove(), 0.5)]
+    s = emcee.EnsembleSampler(16, 3, lp, vectorize=True, moves=moves)
+    s.random_state = np.random.RandomState(5).get_state()
+    s.run_mcmc(np.random.default_rng(1).standard_normal((16, 3)), 4000, progress=False)
+    ch = s.get_chain(discard=500, flat=True)
+    tau = np.max(emcee.autocorr.integrated_time(s.get_chain(discard=500), quiet=True))
+    n_eff = ch.shape[0] / tau
+    assert n_eff > 3000
+    se = 1.0 / np.sqrt(n_eff)
+    assert np.all(np.abs(ch.mean(axis=0)) < 5 * se)
+    assert np.all(np.abs(np.cov(ch.T) - C) < 5 * np.sqrt(2.0 / n_eff) + 0.01)
