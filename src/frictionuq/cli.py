@@ -103,6 +103,22 @@ def _cmd_advantage(a):
     print(f"wrote {a.out or a.fit_dir}/advantage.csv and advantage.json")
 
 
+def _cmd_compare(a):
+    from .infer.compare import compare_campaign, format_table
+    from .infer.fit import FitConfig
+    from .infer.sampler import SamplerConfig
+    samp = SamplerConfig(**({"max_steps": a.max_steps} if a.max_steps else {}))
+    models = list(dict.fromkeys(a.model or ["three_stage", "lugre"]))
+    cfgs = {m: FitConfig(model=m, likelihood=a.likelihood, seed=a.seed, sampler=samp) for m in models}
+    r = compare_campaign(a.campaign, a.out, cfgs, kinds=a.kind, tests=a.test, seed=a.seed,
+                         offset=a.offset, log=lambda m: print(m, file=sys.stderr))
+    print(format_table(r))
+    print(f"wrote {a.out}/compare.json and compare.csv (RMSE in N, ELPD in nats of whole held-out tests)")
+    if not all(m["converged"] for lv in r["levels"] for m in lv["models"].values()):
+        print("not converged: some fits stopped at --max-steps; their ELPD and RMSE are less reliable")
+        return 1
+
+
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
     p = argparse.ArgumentParser(prog="frictionuq", description=__doc__.splitlines()[0])
@@ -187,6 +203,20 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", default=None, help="folder for advantage.csv/.json (default FIT_DIR)")
     s.set_defaults(func=_cmd_advantage)
 
+    s = sub.add_parser("compare", help="model comparison per applied force: RMSE and leave-one-test-out ELPD")
+    s.add_argument("campaign", help="campaign folder or ingested folder")
+    s.add_argument("--out", required=True, help="output folder: compare.json, compare.csv")
+    s.add_argument("--model", action="append", metavar="MODEL",
+                   help="a model to compare (repeatable; default three_stage and lugre)")
+    s.add_argument("--likelihood", choices=["iid", "ar1"], default="ar1")
+    s.add_argument("--offset", choices=["marginal", "shared"], default="marginal",
+                   help="held-out test's load-cell offset: integrated out (default) or the training fit's")
+    s.add_argument("--seed", type=int, default=1)
+    s.add_argument("--test", action="append", metavar="ID", help="only this test (repeatable)")
+    s.add_argument("--kind", action="append", choices=["harmonic", "earthquake", "other"],
+                   help="only tests of this kind (repeatable)")
+    s.add_argument("--max-steps", type=int, default=None, help="cap on stored sampler steps per fit")
+    s.set_defaults(func=_cmd_compare)
     return p
 
 

@@ -1,0 +1,469 @@
+"""Model comparison per applied force: RMSE of the posterior-median prediction (the BRFD paper's
+Table 4 measure) and held-out predictive accuracy (ELPD) by leave-one-TEST-out cross-validation.
+
+For every applied-force level and every model configuration (default: the 3-stage model and pure
+LuGre, each with the project's default priors and sampler):
+
+* **RMSE** (N): one fit on all tests of the level (frictionuq.infer.fit.prepare + sampler.sample,
+  as `frictionuq fit` does); the noise-free model force (offset included) of up to
+  `n_predictive` posterior draws on each test, its pointwise posterior median, and the RMSE of
+  the data about it, pooled over the level's tests and per test. Like the fit summaries, it is
+  evaluated on the fit's (decimated) records.
+* **ELPD** (nats): for each test k of the level, the model is fitted on the other tests only and
+  the held-out test is predicted:
+      elpd_k = log( (1/S) sum_s p(y_k | theta_s) ),   theta_s ~ p(theta | y_-k),
+  computed as logsumexp - log S, where p(y_k | theta) is the record's likelihood with its own
+  noise parameters (sigma_noise, and noise_phi for `ar1`) integrated out exactly as in the fit
+  (frictionuq.infer.noisemodel, the held-out record's noise priors being the training fit's).
+  Whole tests are the held-out units: the residuals of a friction model are strongly
+  autocorrelated within a test, so pointwise LOO over samples would predict a sample from its
+  neighbours and say little about a new test. Then (Vehtari, Gelman & Gabry 2017, Stat. Comput.
+  27, 1413, eq. 23-24)
+      ELPD = sum_k elpd_k,   SE = sqrt(K * V_k(elpd_k)),
+  and for two models A, B with paired per-test differences d_k = elpd_k(A) - elpd_k(B)
+      dELPD = sum_k d_k,   SE(dELPD) = sqrt(K * V_k(d_k)),
+  V being the sample variance with divisor K - 1 (the paper's definition; ArviZ divides by K).
+  With few tests (K = 2 to 5) these SEs are themselves uncertain: |dELPD| > 2 SE is a screen, not
+  a calibrated test. A level with a single test cannot be cross-validated by test and is
+  reported as such (elpd None), never with invented numbers.
+  `n_eff_weights` per test is (sum w)^2 / sum w^2 of the weights w_s = p(y_k | theta_s): when it
+  is a handful of draws the log-mean is carried by few (autocorrelated) draws and is noisy.
+
+**The held-out test's force offset.** The fits carry one `force_offset` (load-cell zero) shared
+by the tests of the fit. Nothing in the other tests tells the zero of a new test: a load cell is
+re-zeroed, drifts or is re-mounted between tests. By default (`offset="marginal"`) the held-out
+test gets its own offset c, integrated out under a uniform prior on the training fit's
+`force_offset` prior box [lo, hi] (density 1/(hi - lo); the fit's own prior there is a normal
+truncated to that box, centred on 0 with the records' force asymmetry as sd). Given theta, the
+residual e = y - F(theta) - c of the AR(1) noise model has the quadratic form
+      Q(c, phi) = (1 - phi^2)(e_0 - c)^2 + sum_{k>=1} ((e_k - phi e_{k-1}) - c (1 - phi))^2
+                = Q_min(phi) + A(phi) (c - c_hat(phi))^2,
+      A = (1 - phi^2) + (N - 1)(1 - phi)^2,
+so c integrates in closed form together with sigma (log-uniform prior on [a, b], integrated over
+(0, inf) as noisemodel does) before phi (grid, as in noisemodel); `iid` is phi = 0 (A = N,
+Q_min = sum (e - mean e)^2):
+      p(e | phi) = pi^(-(N-1)/2) Gamma((N-1)/2) (1 - phi^2)^(1/2) A^(-1/2) Q_min^(-(N-1)/2)
+                   / (2 ln(b/a) (hi - lo)) * [T_(N-1)(t_hi) - T_(N-1)(t_lo)],
+      t = (c - c_hat) sqrt(A (N-1) / Q_min) at c = lo, hi
+(T_nu the Student-t CDF: with sigma integrated out, c given phi is Student-t). With sigma fixed:
+(2 pi s^2)^(-(N-1)/2) (1 - phi^2)^(1/2) A^(-1/2) exp(-Q_min / (2 s^2)) / (hi - lo) times the
+normal probability of the box, s^2 = sigma^2 (1 - phi^2). The box factor matters only for a
+model that needs an offset beyond the prior (e.g. LuGre absorbing backlash misfit into a shifted
+zero); sd(c) = s / sqrt(A) is at most the noise sd. The median c_hat of each held-out test is
+reported (`heldout_offset`, flagged when outside the box). The box derives from the training
+records, not from the model, so 1/(hi - lo) is the same for all models of a fold and cancels in
+dELPD. A model is thus judged on the shape of the force it predicts for a new test, not on a
+zero it cannot know.
+`offset="shared"` instead treats the held-out test's offset as the training posterior's shared
+offset (plain LogPosterior.loglik_records on the held-out record), the right choice when the
+tests of a level were recorded in one session without re-zeroing. A fixed `force_offset`
+(config priors {"force_offset": value}) is known and used as such in either mode.
+
+Seeds: the full-data fit of every model uses `seed`, the fit without test k uses seed + 1 + k
+(the same for all models, so the models see the same random streams).
+"""
+from __future__ import annotations
+
+import csv
+import io
+import math
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+from scipy.special import betaln, gammaln, hyp2f1, log_ndtr, logsumexp, stdtr
+
+from .. import atomic, params as P
+from ..errors import InputError
+from . import noisemodel
+from .fit import FitConfig, FitSpec, jsonable, plan, prepare
+from .likelihood import LogPosterior, records_from_tests
+from .sampler import sample
+
+DEFAULT_MODELS = ("three_stage", "lugre")
+OFFSET_MODES = ("marginal", "shared")
+BATCH = 512
+
+
+# ------------------------------------------------------------------ ELPD arithmetic
+def log_mean_exp(a) -> float:
+    """log((1/S) sum_s exp(a_s)), stably (logsumexp - log S); -inf terms are allowed."""
+    a = np.asarray(a, dtype=float).ravel()
+    if a.size == 0:
+        raise ValueError("log_mean_exp of an empty array")
+    return float(logsumexp(a) - math.log(a.size))
+
+
+def weights_n_eff(a) -> float:
+    """(sum w)^2 / sum w^2 of w = exp(a): how many draws carry the log-mean."""
+    a = np.asarray(a, dtype=float).ravel()
+    if not np.isfinite(np.max(a)):
+        return 0.0
+    return float(math.exp(2.0 * logsumexp(a) - logsumexp(2.0 * a)))
+
+
+def elpd_total(elpd_k) -> dict:
+    """ELPD = sum of the per-test values and SE = sqrt(K * sample variance), divisor K - 1
+    (Vehtari, Gelman & Gabry 2017, eq. 23). Needs K >= 2."""
+    e = np.asarray(elpd_k, dtype=float).ravel()
+    if e.size < 2:
+        raise ValueError("ELPD by held-out tests needs at least 2 tests")
+    return {"elpd": float(np.sum(e)), "se": float(math.sqrt(e.size * np.var(e, ddof=1))),
+            "n_tests": int(e.size)}
+
+
+def elpd_difference(elpd_a, elpd_b) -> dict:
+    """dELPD = sum_k (a_k - b_k) and its SE from the paired differences (eq. 24)."""
+    a = np.asarray(elpd_a, dtype=float).ravel()
+    b = np.asarray(elpd_b, dtype=float).ravel()
+    if a.shape != b.shape:
+        raise ValueError("paired ELPD differences need the same tests for both models")
+    t = elpd_total(a - b)
+    return {"delta_elpd": t["elpd"], "se": t["se"], "n_tests": t["n_tests"]}
+
+
+# ------------------------------------------------------------------ held-out likelihood
+def log_cdf_t(t, nu: float) -> np.ndarray:
+    """log of the Student-t CDF with nu degrees of freedom, accurate far in the lower tail
+    (where scipy's stdtr underflows): there via the incomplete-beta identity
+    I_x(a, b) = x^a (1-x)^b F(a+b, 1; a+1; x) / (a B(a, b)) (DLMF 8.17.8), x = nu/(nu+t^2),
+    a = nu/2, b = 1/2; the normal tail (log_ndtr) where that hypergeometric series fails
+    (nu above about 1e5, where t and normal tails agree to a fraction of a nat)."""
+    t = np.asarray(t, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = np.log(stdtr(nu, t))
+        tail = (t < 0) & ~(out > -690.0)
+        if np.any(tail):
+            tt = t[tail]
+            x = nu / (nu + tt**2)
+            a = 0.5 * nu
+            v = (math.log(0.5) + a * np.log(x) + 0.5 * np.log1p(-x) - math.log(a) - betaln(a, 0.5)
+                 + np.log(hyp2f1(a + 0.5, 1.0, a + 1.0, x)))
+            out[tail] = np.where(np.isfinite(v), v, log_ndtr(tt))
+    return out
+
+
+def log_interval(lo, hi, logcdf) -> np.ndarray:
+    """log(F(hi) - F(lo)) for a distribution symmetric about 0, lo < hi elementwise, accurate when
+    both ends lie in the same tail."""
+    lo, hi = np.broadcast_arrays(np.asarray(lo, float), np.asarray(hi, float))
+    flip = lo > 0                                  # F(hi) - F(lo) = F(-lo) - F(-hi)
+    a = np.where(flip, -hi, lo)
+    b = np.where(flip, -lo, hi)
+    la, lb = logcdf(a), logcdf(b)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = lb + np.log1p(-np.exp(la - lb))
+    return np.where(np.isfinite(lb), out, -np.inf)
+
+
+def log_marginal_offset(e: np.ndarray, kind: str, sigma_bounds: tuple[float, float],
+                        sigma_fixed: float | None = None, phi_fixed: float | None = None,
+                        offset_box: tuple[float, float] = (-np.inf, np.inf),
+                        offset_width: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """log p(y | F) of residuals e = y - F (no offset subtracted; (W, N)) with a constant offset c
+    integrated out under a uniform prior on offset_box (density 1 / its width; for an unbounded
+    box pass offset_width, the density being 1/offset_width), and the noise parameters
+    integrated out as in noisemodel.log_marginal: see the module docstring. Returns
+    (log marginal (W,), c_hat (W,): the conditional optimum of c at the most probable phi)."""
+    e = np.atleast_2d(np.asarray(e, dtype=float))
+    W, N = e.shape
+    if N < 3:
+        raise ValueError("a held-out record needs at least 3 samples")
+    lo, hi = map(float, offset_box)
+    if not lo < hi:
+        raise ValueError(f"offset box needs lower < upper, got {offset_box}")
+    width = offset_width if offset_width is not None else hi - lo
+    if not (np.isfinite(width) and width > 0):
+        raise ValueError("an unbounded offset box needs a finite offset_width > 0")
+    mean = e.mean(axis=1, keepdims=True)
+    ec = e - mean                      # work about the mean (less cancellation); c shifts with it
+    if kind == "iid":
+        phi_fixed = 0.0
+    if phi_fixed is not None:
+        phis, logw = np.array([float(phi_fixed)]), np.array([0.0])
+    else:
+        phis, logw = noisemodel.PHI_GRID, noisemodel._LOG_W
+    S0, S1, S2, e0sq = noisemodel.suff_stats(ec)
+    ph = phis[None, :]
+    Q0 = S0[:, None] - 2 * ph * S1[:, None] + ph**2 * (S2 - e0sq)[:, None]
+    e0 = ec[:, 0][:, None]
+    T1 = (ec[:, 1:].sum(axis=1))[:, None]
+    T0 = (ec[:, :-1].sum(axis=1))[:, None]
+    A = (1 - ph**2) + (N - 1) * (1 - ph) ** 2                       # (1, P)
+    B = (1 - ph**2) * e0 + (1 - ph) * (T1 - ph * T0)                 # (W, P)
+    c_opt = mean + B / A                                              # (W, P), about the data
+    Qmin = np.maximum(Q0 - B**2 / A, 1e-300)
+    half = 0.5 * np.log1p(-ph**2) - 0.5 * np.log(A) - math.log(width)
+    if sigma_fixed is None:
+        a, b = sigma_bounds
+        M = N - 1
+        lp = (-0.5 * M * math.log(math.pi) + gammaln(0.5 * M) - math.log(2 * math.log(b / a))
+              + half - 0.5 * M * np.log(Qmin))
+        if np.isfinite(lo) or np.isfinite(hi):     # Student-t in c with N - 1 dof
+            k = np.sqrt(A * M / Qmin)
+            lp = lp + log_interval((lo - c_opt) * k, (hi - c_opt) * k, lambda t: log_cdf_t(t, M))
+    else:
+        s2 = sigma_fixed**2 * (1 - ph**2)
+        lp = -0.5 * (N - 1) * np.log(2 * math.pi * s2) + half - Qmin / (2 * s2)
+        if np.isfinite(lo) or np.isfinite(hi):     # Gaussian in c
+            k = np.sqrt(A / s2)
+            lp = lp + log_interval((lo - c_opt) * k, (hi - c_opt) * k, log_ndtr)
+    lp = lp + logw[None, :]
+    best = np.argmax(lp, axis=1)
+    return logsumexp(lp, axis=1), c_opt[np.arange(W), best]
+
+
+def heldout_loglik(logpost: LogPosterior, theta: np.ndarray, offset: str = "marginal",
+                   offset_box: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """log p(y_held-out | theta_s) for draws theta (S, ndim) of a training fit, on the records of
+    `logpost` (built on the held-out record(s) with the training Space). Returns
+    (log-likelihood (S, n_records), c_hat (S, n_records); NaN where the offset is not
+    marginalised)."""
+    theta = np.atleast_2d(theta)
+    sp = logpost.space
+    S, R = theta.shape[0], len(logpost.records)
+    ll = np.empty((S, R))
+    ch = np.full((S, R), np.nan)
+    if offset not in OFFSET_MODES:
+        raise InputError(f"held-out offset must be one of {OFFSET_MODES}, got {offset!r}")
+    marginal = offset == "marginal" and "force_offset" in sp.priors
+    for i in range(0, S, BATCH):
+        th = theta[i:i + BATCH]
+        if not marginal:
+            ll[i:i + BATCH] = logpost.loglik_records(th)
+            continue
+        lo, hi = offset_box if offset_box is not None else (sp.priors["force_offset"].lower,
+                                                            sp.priors["force_offset"].upper)
+        for j, rec in enumerate(logpost.records):
+            e = rec.y[None, :] - logpost.simulate(th, rec)
+            ll[i:i + BATCH, j], ch[i:i + BATCH, j] = log_marginal_offset(
+                e, offset_box=(lo, hi), **logpost.noise)
+    ll = np.where(np.isnan(ll), -np.inf, ll)
+    return ll, ch
+
+
+# ------------------------------------------------------------------ fits
+def _draws(res) -> np.ndarray:
+    return res.chain.reshape(-1, res.chain.shape[-1])
+
+
+def _rmse(logpost, res, n_draws: int, rng) -> tuple[float, dict]:
+    """RMSE (N) of the pointwise posterior median of the noise-free force (offset included)."""
+    th = _draws(res)
+    idx = rng.choice(th.shape[0], size=min(n_draws, th.shape[0]), replace=False)
+    sel = th[idx]
+    off = logpost.space.offset(sel)
+    sq, n, per = 0.0, 0, {}
+    for rec in logpost.records:
+        F = logpost.simulate(sel, rec) + off[:, None]
+        r = rec.y - np.median(F, axis=0)
+        per[rec.id] = float(np.sqrt(np.mean(r**2)))
+        sq += float(np.sum(r**2))
+        n += r.size
+    return float(math.sqrt(sq / n)), per
+
+
+def _fit(tests, cfg: FitConfig, seed: int, spec_id: str, work_dir, log):
+    spec = FitSpec(spec_id, list(tests), tests[0].applied, replace(cfg, seed=seed, kinds=None, tests=None))
+    records, scales, space, logpost = prepare(spec)
+    backend = None if work_dir is None else Path(work_dir) / spec_id / "chain.h5"
+    res = sample(logpost, scales, seed, backend, cfg.sampler, resume=False,
+                 log=lambda m: log(f"{spec_id}: {m}"))
+    return records, space, logpost, res
+
+
+def _fit_record(res) -> dict:
+    return {"steps": int(res.n_steps), "converged": bool(res.converged_tau),
+            "draws": int(res.chain.shape[0] * res.chain.shape[1]), "seconds": float(res.seconds)}
+
+
+def check_configs(configs: dict) -> dict:
+    """Validate {name: FitConfig}: known models, effects the model can carry, a known
+    likelihood. Raises InputError (one line)."""
+    if not configs:
+        raise InputError("compare: no model configuration given")
+    for name, cfg in configs.items():
+        if not isinstance(cfg, FitConfig):
+            raise InputError(f"compare: configuration {name!r} is not a FitConfig")
+        try:
+            P.check_effects({e: {} for e in cfg.effects}, cfg.model)
+        except ValueError as e:
+            raise InputError(f"compare: model {name!r}: {e}") from None
+        if cfg.likelihood not in ("iid", "ar1"):
+            raise InputError(f"compare: model {name!r}: unknown likelihood {cfg.likelihood!r}; "
+                             "use iid or ar1")
+    return configs
+
+
+def compare_level(tests, configs: dict[str, FitConfig], seed: int, log=None, *,
+                  offset: str = "marginal", work_dir=None) -> dict:
+    """Compare model configurations on the tests of one applied-force level (campaign Test
+    objects with SI records). Returns {"tests", "applied", "cross_validated", "models": {name:
+    {rmse, rmse_per_test, elpd, se, elpd_per_test, ...}}, "pairs": [...]}: see the module
+    docstring. work_dir (optional): where the sampler keeps its HDF5 chains."""
+    log = log or (lambda m: None)
+    check_configs(configs)
+    if offset not in OFFSET_MODES:
+        raise InputError(f"compare: offset must be one of {OFFSET_MODES}, got {offset!r}")
+    tests = list(tests)
+    if not tests:
+        raise InputError("compare: a level needs at least one test")
+    ids = [t.id for t in tests]
+    if len(set(ids)) != len(ids):
+        raise InputError(f"compare: duplicate test ids in {ids}")
+    K = len(tests)
+    cv = K >= 2
+    out = {"tests": ids, "applied": float(tests[0].applied), "n_tests": K, "cross_validated": cv,
+           "offset": offset, "models": {}, "pairs": []}
+    if not cv:
+        out["note"] = ("a single test: leave-one-test-out cross-validation is impossible, no ELPD "
+                       "reported")
+    for name, cfg in configs.items():
+        t0 = time.perf_counter()
+        m: dict = {"model": cfg.model, "effects": list(cfg.effects), "likelihood": cfg.likelihood}
+        _, _, lp_full, res = _fit(tests, cfg, seed, f"{name}/all", work_dir, log)
+        m["rmse"], m["rmse_per_test"] = _rmse(lp_full, res, cfg.n_predictive,
+                                              np.random.default_rng([seed, 7]))
+        m["fits"] = {"all": _fit_record(res)}
+        log(f"{name}: RMSE {m['rmse']:.4g} N (all {K} tests)")
+        if cv:
+            elpd_k, neff, c_hat = {}, {}, {}
+            for k, held in enumerate(tests):
+                train = tests[:k] + tests[k + 1:]
+                _, space, _, res_k = _fit(train, cfg, seed + 1 + k, f"{name}/without-{held.id}",
+                                          work_dir, log)
+                rec = records_from_tests([held], samples_per_cycle=cfg.samples_per_cycle,
+                                         eps=cfg.eps)
+                lp_held = LogPosterior(space, rec)
+                ll, ch = heldout_loglik(lp_held, _draws(res_k), offset)
+                elpd_k[held.id] = log_mean_exp(ll[:, 0])
+                neff[held.id] = weights_n_eff(ll[:, 0])
+                if np.isfinite(ch).any():
+                    box = space.priors["force_offset"]
+                    c = float(np.nanmedian(ch[:, 0]))
+                    c_hat[held.id] = {"median_N": c, "inside_prior_box": bool(box.lower < c < box.upper)}
+                m["fits"][f"without-{held.id}"] = _fit_record(res_k)
+                log(f"{name}: held-out {held.id}: elpd {elpd_k[held.id]:.6g} nats "
+                    f"(n_eff of weights {neff[held.id]:.1f})")
+            tot = elpd_total(list(elpd_k.values()))
+            m.update(elpd=tot["elpd"], se=tot["se"], elpd_per_test=elpd_k, n_eff_weights=neff,
+                     heldout_offset=c_hat)
+        else:
+            m.update(elpd=None, se=None, elpd_per_test=None)
+        m["converged"] = all(f["converged"] for f in m["fits"].values())
+        m["seconds"] = time.perf_counter() - t0
+        out["models"][name] = m
+    if cv:
+        names = list(configs)
+        for i, a in enumerate(names):
+            for b in names[i + 1:]:
+                ea = [out["models"][a]["elpd_per_test"][t] for t in ids]
+                eb = [out["models"][b]["elpd_per_test"][t] for t in ids]
+                d = elpd_difference(ea, eb)
+                out["pairs"].append({"a": a, "b": b, "delta_elpd": d["delta_elpd"], "se": d["se"],
+                                     "delta_per_test": dict(zip(ids, np.subtract(ea, eb).tolist()))})
+    return out
+
+
+def default_configs(likelihood: str = "ar1", seed: int = 1, sampler=None) -> dict[str, FitConfig]:
+    kw = {"likelihood": likelihood, "seed": seed}
+    if sampler is not None:
+        kw["sampler"] = sampler
+    return {m: FitConfig(model=m, **kw) for m in DEFAULT_MODELS}
+
+
+#: compare.csv: one row per level and model; delta_elpd_nats = ELPD(model) - ELPD(compared_to),
+#: the first model of the configuration, with the SE of the paired differences
+CSV_COLUMNS = ("level", "applied_si", "model", "n_tests", "rmse_N", "elpd_nats", "elpd_se_nats",
+               "compared_to", "delta_elpd_nats", "delta_se_nats", "converged")
+
+
+def _csv(levels) -> str:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(CSV_COLUMNS)
+
+    def f(v):
+        return "" if v is None else f"{v:.10g}"
+    for lv in levels:
+        names = list(lv["models"])
+        ref = names[0]
+        pairs = {(p["a"], p["b"]): p for p in lv["pairs"]}
+        for n in names:
+            m = lv["models"][n]
+            p = pairs.get((ref, n)) if n != ref else None     # delta of the pair is ref - n
+            w.writerow([lv["id"], f(lv["applied"]), n, lv["n_tests"], f(m["rmse"]), f(m["elpd"]),
+                        f(m["se"]), ref if p else "", f(-p["delta_elpd"]) if p else "",
+                        f(p["se"]) if p else "", m["converged"]])
+    return buf.getvalue()
+
+
+def compare_campaign(campaign_path, out_dir, configs: dict[str, FitConfig] | None = None,
+                     kinds=None, tests=None, log=None, *, seed: int | None = None,
+                     offset: str = "marginal", work_dir=None) -> dict:
+    """Compare models on every applied-force level of a campaign; writes out_dir/compare.json
+    and out_dir/compare.csv (atomically). configs: {name: FitConfig}, default three_stage and
+    lugre with the default fit settings; kinds / tests: only tests of these kinds / ids; seed:
+    default the first configuration's. Bad input is refused (InputError) before any sampling."""
+    from .. import __version__
+    from ..campaign import load_campaign
+    log = log or (lambda m: None)
+    configs = check_configs(dict(configs) if configs else default_configs())
+    if offset not in OFFSET_MODES:
+        raise InputError(f"compare: offset must be one of {OFFSET_MODES}, got {offset!r}")
+    seed = int(next(iter(configs.values())).seed if seed is None else seed)
+    camp = load_campaign(campaign_path)
+    kinds = tuple(kinds) if kinds else None
+    tests = tuple(tests) if tests else None
+    if tests:
+        known = {t.id for t in camp.tests}
+        unknown = [t for t in tests if t not in known]
+        if unknown:
+            raise InputError(f"campaign {camp.name!r}: unknown test id(s) {', '.join(unknown)}")
+    specs = None
+    for cfg in configs.values():     # validates every configuration against the selection
+        specs = plan(camp, "applied", replace(cfg, kinds=kinds, tests=tests))
+    levels = []
+    for spec in specs:
+        log(f"level {spec.id}: {len(spec.tests)} test(s): {', '.join(t.id for t in spec.tests)}")
+        wd = None if work_dir is None else Path(work_dir) / spec.id
+        lv = compare_level(spec.tests, configs, seed, log=lambda m, s=spec.id: log(f"{s}: {m}"),
+                           offset=offset, work_dir=wd)
+        lv["id"] = spec.id
+        levels.append(lv)
+    result = {"package_version": __version__, "campaign": camp.name,
+              "campaign_path": str(campaign_path), "seed": seed, "offset": offset,
+              "config": {"models": {n: c.to_json() for n, c in configs.items()},
+                         "kinds": list(kinds) if kinds else None,
+                         "tests": list(tests) if tests else None},
+              "units": {"rmse": "N", "elpd": "nats (natural-log predictive density of a whole "
+                                           "held-out test)", "applied_si": "N (or Pa)"},
+              "method": "leave-one-test-out refits per applied-force level; SE = sqrt(K var_k), "
+                        "var with divisor K-1 (Vehtari, Gelman & Gabry 2017); see "
+                        "frictionuq.infer.compare",
+              "levels": levels}
+    out_dir = Path(out_dir)
+    atomic.write_json(out_dir / "compare.json", jsonable(result))
+    atomic.write_text(out_dir / "compare.csv", _csv(levels))
+    return result
+
+
+def format_table(result: dict) -> str:
+    """A plain-text table of a compare result (units in the header)."""
+    lines = [f"{'level':<18} {'model':<14} {'tests':>5} {'RMSE (N)':>10} {'ELPD (nats)':>14} "
+             f"{'SE':>9}"]
+    for lv in result["levels"]:
+        for n, m in lv["models"].items():
+            el = "n/a" if m["elpd"] is None else f"{m['elpd']:.1f}"
+            se = "" if m["se"] is None else f"{m['se']:.1f}"
+            flag = "" if m["converged"] else "  (not converged)"
+            lines.append(f"{lv['id']:<18} {n:<14} {lv['n_tests']:>5} {m['rmse']:>10.4g} {el:>14} "
+                         f"{se:>9}{flag}")
+        if not lv["cross_validated"]:
+            lines.append(f"{'':<18} one test only: cannot hold out a test, no ELPD")
+        for p in lv["pairs"]:
+            z = f"{p['delta_elpd'] / p['se']:+.1f} SE" if p["se"] > 0 else "SE 0"
+            lines.append(f"{'':<18} dELPD {p['a']} - {p['b']}: {p['delta_elpd']:.1f} +- "
+                         f"{p['se']:.1f} nats ({z})")
+    return "\n".join(lines)
