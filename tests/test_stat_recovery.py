@@ -1,0 +1,127 @@
+"""Recovery of the published parameters of both devices from twin-like synthetic records, with
+the real fit path (frictionuq.infer.fit.prepare + frictionuq.infer.sampler.sample: default
+data-derived priors, multi-start MAP, adaptive burn-in, emcee's DE/snooker moves plus the
+independence move fitted to the burn-in, in the unbounded coordinates, per-record AR(1) noise
+integrated out).
+
+Cases: BRFD at 66, 133 and 267 N (0.5 Hz) and 267 N (0.2 Hz); MFD at 500, 800, 1200 and 1500 psi
+(0.5 Hz): published sets of spec section 6, all 13 model parameters and force_offset free (14
+per fit, 112 (parameter, fit) pairs); nothing is fixed. Records kept small: one sine of the
+paper's amplitude (BRFD 25.4 mm, MFD 1 in), 3 cycles sampled directly at 100 samples per cycle
+(300 samples, decimation factor 1), so that the noise is exactly of the class the likelihood
+assumes: force = simulated (published parameters) + offset 0.5 % of Fc + stationary AR(1) noise,
+phi 0.8, marginal sd 1 % of Fc (Fc = (fc_fwd + fc_bwd) / 2). A fixed sampler budget instead of the
+convergence loop: 2 to 4 burn-in rounds of 500 steps, then 2000 stored steps (measured: max
+R-hat 1.04-1.17 and min ESS 130-450 per fit, MFD 500 psi R-hat 1.30 and ESS 50: enough for 95 %
+intervals, not for the project's convergence rule).
+
+Assertion: the true value lies inside the equal-tailed 95 % posterior interval for at least
+90 % of the 112 pairs (at most 11 misses). Measured (commit 4af28db): 2 misses, 110/112 = 98 %
+covered (BRFD 267 N 0.2 Hz force_offset, MFD 500 psi fc_bwd); the truth's Mahalanobis distance
+per fit is chi-square(14) at p = 0.06-0.96. In all four BRFD fits the MAP search ends 410-620
+log-posterior units below the truth's log-posterior and the burn-in rounds recover.
+
+False-alarm rate (probability of failing on correct code, over noise seeds): 1.0 % if the 112
+interval misses were independent Bernoulli(0.05) (P(Binomial(112, 0.05) >= 12)). Misses within
+a fit are correlated (posterior correlations up to 0.99 for the MFD), which widens the spread
+of the miss count: simulating z ~ N(0, R_fit) with each fit's measured posterior correlation
+matrix and counting |z| > 1.96 gives 2.5 %. Weakly identified parameters (v_s, sigma1, the fs
+ratios, the MFD's sigma0 and d3) have intervals close to their priors and miss less often than
+5 %, so the rate is lower in practice. These rates assume the sampler reaches the posterior's
+main mode; a fit stuck in a wrong mode fails the test, rightly: that is why the low-force BRFD
+sets are not in the list (see the xfail test below: the MAP search misses the mode there, and
+for 35 N the burn-in does not recover it either, also with the default SamplerConfig: the chain
+settles 250 log-posterior units below the truth and 9-10 of the 14 intervals miss).
+Deterministic (seeded); about 75 s of CPU on 2 cores: marked slow."""
+from __future__ import annotations
+
+import warnings
+from types import SimpleNamespace as NS
+
+import numpy as np
+import pytest
+
+from frictionuq import published
+from frictionuq.infer.fit import FitConfig, FitSpec, prepare
+from frictionuq.infer.optimize import find_map
+from frictionuq.infer.sampler import SamplerConfig, sample
+from frictionuq.model import simulate
+from frictionuq.noise import ar1_from_normals
+from frictionuq.units import PSI
+
+#: (device, level: N for the BRFD, psi for the MFD, frequency Hz); the index is the noise seed
+CASES = (("brfd", 267.0, 0.2), ("brfd", 66.0, 0.5), ("brfd", 133.0, 0.5), ("brfd", 267.0, 0.5),
+         ("mfd", 500.0, 0.5), ("mfd", 800.0, 0.5), ("mfd", 1200.0, 0.5), ("mfd", 1500.0, 0.5))
+SAMPLES_PER_CYCLE, CYCLES = 100, 3
+PHI, NOISE_SD, OFFSET = 0.8, 0.01, 0.005       # noise and offset as fractions of Fc
+MIN_COVERED = 0.90
+SEED = 7
+SAMPLER = SamplerConfig(chunk=2000, min_steps=2000, max_steps=2000, burn_rounds=2,
+                        burn_max_rounds=4, burn_steps=500, n_random_starts=2, n_prior_starts=2,
+                        progress=False)
+
+
+def twin_like(device: str, level: float, freq: float, k: int, sampler=SAMPLER):
+    """A short twin-like record of `device` at `level`, prepared for the fit. Returns (records,
+    scales, space, log-posterior, true values in sampling coordinates)."""
+    if device == "brfd":
+        truth, applied, amp = published.brfd_params(level), level, published.BRFD_AMPLITUDE_M
+    else:
+        truth, applied, amp = published.mfd_params(level), level * PSI, published.MFD_AMPLITUDE_M
+    rate = SAMPLES_PER_CYCLE * freq
+    t = np.arange(CYCLES * SAMPLES_PER_CYCLE) / rate
+    x = amp * np.sin(2 * np.pi * freq * t)
+    fc = 0.5 * (truth["fc_fwd"] + truth["fc_bwd"])
+    rng = np.random.default_rng([SEED, k])
+    y = (simulate(t, x, truth) + OFFSET * fc
+         + ar1_from_normals(rng.standard_normal(t.size), PHI, NOISE_SD * fc))
+    test = NS(id=f"{device}-{level:g}-{freq:g}Hz", record=NS(t=t, x=x, force=y, applied=None),
+              applied=applied, kind="harmonic", frequency_hz=freq)
+    cfg = FitConfig(seed=k + 1, samples_per_cycle=SAMPLES_PER_CYCLE, sampler=sampler)
+    records, scales, space, logpost = prepare(FitSpec(test.id, [test], applied, cfg))
+    assert records[0].q == 1 and records[0].n == t.size
+    return records, scales, space, logpost, space.to_theta({**truth, "force_offset": OFFSET * fc})
+
+
+def fit_case(k: int):
+    """Fit case k. Returns (space, posterior draws (n, ndim) in sampling coordinates, true
+    values in sampling coordinates)."""
+    _, scales, space, logpost, true_theta = twin_like(*CASES[k], k)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")      # emcee's "chain shorter than 50 tau" warnings
+        res = sample(logpost, scales, k + 1, None, SAMPLER)
+    return space, res.chain.reshape(-1, space.ndim), true_theta
+
+
+@pytest.mark.slow
+def test_published_parameters_recovered_for_both_devices():
+    misses, pairs = [], 0
+    for k, (device, level, freq) in enumerate(CASES):
+        space, draws, true_theta = fit_case(k)
+        assert space.ndim == 14
+        lo, hi = np.quantile(draws, [0.025, 0.975], axis=0)   # monotone maps: same as in SI
+        for i, name in enumerate(space.names):
+            pairs += 1
+            if not lo[i] <= true_theta[i] <= hi[i]:
+                v = space.to_values(np.vstack([true_theta, lo, hi]))[:, i]
+                misses.append(f"{device} {level:g} {freq:g} Hz: {name} true {v[0]:.4g} "
+                              f"not in [{v[1]:.4g}, {v[2]:.4g}]")
+    covered = 1 - len(misses) / pairs
+    print(f"coverage of the 95 % intervals: {pairs - len(misses)}/{pairs} = {covered:.3f}; "
+          f"misses: {misses}")
+    assert pairs == len(CASES) * 14
+    assert covered >= MIN_COVERED, f"only {covered:.1%} of {pairs} intervals cover the truth: {misses}"
+
+
+@pytest.mark.xfail(strict=True, reason="known problem: optimize.find_map ends in a local optimum "
+                   "tens to hundreds of log-posterior units below the true parameters on short BRFD "
+                   "records (here the low-force sets, where the burn-in does not recover either)")
+@pytest.mark.parametrize("level, k", [(35.0, 1), (53.0, 3)])
+def test_map_search_reaches_the_true_mode_on_low_force_brfd(level, k):
+    """The multi-start MAP search (default starts) should end at least as high as the true
+    parameters' log-posterior (minus 5, for the optimiser's tolerance); measured: 244 (35 N) and
+    47 (53 N) below it, with v_s, sigma0 or d3 far off. Deterministic (no sampling)."""
+    _, scales, _, logpost, true_theta = twin_like("brfd", level, 0.5, k, sampler=SamplerConfig())
+    lp_true = float(logpost.log_prob(true_theta[None])[0])
+    _, lp_map, _ = find_map(logpost, scales, np.random.default_rng(k + 1))
+    assert lp_map >= lp_true - 5.0, f"MAP log-posterior {lp_map:.1f}, at the truth {lp_true:.1f}"
