@@ -195,3 +195,20 @@ def test_same_seed_same_chain(small_fit, tmp_path):
     assert isinstance(runs[0].n_steps, int) and isinstance(runs[0].burn, int)
     other = sample(lp, scales, seed=12, backend_path=tmp_path / "c2.h5", cfg=cfg, resume=False)
     assert not np.array_equal(runs[0].chain, other.chain)
+
+
+def test_noise_prior_overrides_that_would_be_ignored_are_refused():
+    """noise_phi is integrated out under a uniform prior and sigma_noise under a log-uniform
+    one: a distribution override of either would be silently ignored, so it is refused."""
+    import pytest
+    from frictionuq.campaign import load_campaign
+    from frictionuq.errors import InputError
+    from frictionuq.infer import fit as F
+    camp = load_campaign("data/brfd-twin")
+    for bad in ({"noise_phi": {"dist": "uniform", "lower": 0.0, "upper": 0.5}},
+                {"sigma_noise": {"dist": "normal", "lower": 1.0, "upper": 1e4, "mu": 10, "sd": 1}}):
+        spec = F.plan(camp, "test", F.FitConfig(tests=("h-267N-0.5Hz",), priors=bad))[0]
+        with pytest.raises(InputError, match="integrated out"):
+            F.prepare(spec)
+    ok = F.plan(camp, "test", F.FitConfig(tests=("h-267N-0.5Hz",), priors={"noise_phi": 0.5}))[0]
+    assert F.prepare(ok)[2].noise_config()["phi_fixed"] == 0.5

@@ -106,8 +106,23 @@ def plan(campaign, by: str = "applied", config: FitConfig | None = None) -> list
             for a, g in sorted(groups.items())]
 
 
+def _check_noise_overrides(overrides: dict, where: str) -> None:
+    """The noise parameters are integrated out under fixed prior forms (noisemodel): they can be
+    fixed, and sigma_noise's log-uniform bounds moved, but no other prior is honoured, so none
+    is accepted."""
+    phi, sig = overrides.get("noise_phi"), overrides.get("sigma_noise")
+    if isinstance(phi, dict):
+        raise InputError(f"{where}: noise_phi is integrated out under a uniform prior on [0, 0.999]; "
+                         "give a number to fix it instead of a distribution")
+    if isinstance(sig, dict) and (sig.get("dist", "loguniform") != "loguniform"
+                                  or "mu" in sig or "sd" in sig):
+        raise InputError(f"{where}: sigma_noise takes a number (fixed) or loguniform bounds "
+                         "(lower, upper) of the innovation sd, which is integrated out")
+
+
 def build_space(spec: FitSpec, scales) -> Space:
     c = spec.config
+    _check_noise_overrides(dict(c.priors or {}), f"fit {spec.id} priors")
     pri = default_priors(scales, c.model, c.effects, c.likelihood)
     pri, fixed = apply_overrides(pri, c.priors, source=f"fit {spec.id} priors")
     if c.model == "lugre":

@@ -139,6 +139,8 @@ def default_priors(s: RecordScales, model: str = "three_stage", effects: Iterabl
             "d3": _u("d3", 0.0, 0.6 * A),
             "w": _lu("w", 1e-4 * A, 0.2 * A),
         })
+    # bounds of the log-uniform prior on the noise's *innovation* sd sigma_noise sqrt(1 -
+    # noise_phi^2) (noisemodel: integrated out in closed form); noise_phi is uniform on [0, 0.999]
     pr["sigma_noise"] = _lu("sigma_noise", 0.3 * s.noise_hf, 2.0 * F)
     off_sd = max(s.asym, 0.02 * F)
     pr["force_offset"] = Prior("force_offset", "normal", -3 * off_sd, 3 * off_sd, 0.0, off_sd)
