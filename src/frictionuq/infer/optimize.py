@@ -166,6 +166,18 @@ def find_map(logpost: LogPosterior, scales: RecordScales, rng: np.random.Generat
                                           else 0.5 * (sp.lo[i] + sp.hi[i]))
                                      for i, n in enumerate(sp.names)}))
     starts = [th_h]
+    # deterministic variants of the heuristic along the directions in which wrong local optima
+    # were found on short BRFD records (v_s at its upper bound with an extreme sigma0 and a
+    # long take-up d3): a small Stribeck velocity, a short take-up, a stiffer or softer bristle
+    for change in ({"v_s": 0.1}, {"d3": 0.2}, {"sigma0": 10.0}, {"sigma0": 0.1},
+                   {"v_s": 0.1, "d3": 0.2}):
+        h = dict(h0)
+        for n, f in change.items():
+            h[n] = h0[n] * f
+        if all(n in sp.names for n in change):
+            starts.append(_clip_in(sp, sp.to_theta({n: h.get(n, float(np.exp(0.5 * (sp.lo[i] + sp.hi[i])))
+                                                           if sp.log[i] else 0.5 * (sp.lo[i] + sp.hi[i]))
+                                                    for i, n in enumerate(sp.names)})))
     width = sp.hi - sp.lo
     for _ in range(n_random):
         starts.append(_clip_in(sp, th_h + rng.normal(0, 0.08, sp.ndim) * width))
