@@ -95,6 +95,12 @@ def test_fit_law_and_draws_at(tmp_path):
     assert np.allclose(draws["fs_fwd"] / draws["fc_fwd"], 1.2, rtol=0.15)
     assert abs(np.median(draws["k2"]) / 5e4 - 1) < 0.1
     assert np.all(draws["w"] == 1e-3)
+    # far outside the tested range the law's values are clipped to the prior box and the
+    # physical bounds, never passed on to the simulator out of range
+    from frictionuq import params as P
+    far, _, _ = law.draws_at(d, 1e9, 500, np.random.default_rng(1))
+    for name, v in far.items():
+        assert np.all((v >= P.PARAMS[name].lower) & (v <= P.PARAMS[name].upper)), name
     # reproducible: same seed, same law file
     text = (d / "law.json").read_text()
     law.fit_law(d, seed=2)

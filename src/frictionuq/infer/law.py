@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 from scipy.special import logsumexp
 
-from .. import atomic
+from .. import atomic, params as P
 from ..errors import InputError
 
 FORCE_DEPENDENT = ("fc_fwd", "fc_bwd", "fs_fwd", "fs_bwd", "sigma0")
@@ -310,10 +310,12 @@ def draws_at(fit_dir, applied_si: float, n: int, rng):
         centre = _mean_fn(L["family"], beta, [a], L["log_space"])[:, 0]
         new = tr - mean_near + centre + np.asarray(L["tau_draws"])[k] * rng.standard_normal(n)
         v = np.exp(new) if L["log_space"] else new
+        # the scatter term can carry a draw past the prior box (or the physical bounds): clip
         lo, hi = near["bounds"].get(name, (-np.inf, np.inf))
-        if not L["log_space"]:
-            v = np.clip(v, lo, hi)
-        out[name] = np.where(np.isfinite(v), v, 0.0)
+        if name in P.PARAMS:
+            lo, hi = max(lo, P.PARAMS[name].lower), min(hi, P.PARAMS[name].upper)
+        v = np.clip(np.where(np.isfinite(v), v, lo), lo, hi)
+        out[name] = v
     for name, v in near["fixed"].items():
         out.setdefault(name, np.full(n, float(v)))
     return out, law["model"], tuple(law["effects"])
