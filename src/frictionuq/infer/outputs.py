@@ -160,9 +160,12 @@ def summary_entry(spec, logpost, res, dt, post, pred) -> dict:
     total, per = rmse(logpost, pred)
     return {"id": spec.id, "tests": [t.id for t in spec.tests], "applied": spec.applied,
             "model": sp.model, "effects": list(sp.effects), "likelihood": sp.likelihood,
-            "parameters": params, "converged": not bad, "not_converged_parameters": bad,
+            "parameters": params, "converged": not bad and bool(res.converged_tau),
+            "not_converged_parameters": bad, "sampler_criteria_met": bool(res.converged_tau),
             "convergence_rule": f"r_hat <= {CONVERGENCE['r_hat_max']} and ess_bulk, ess_tail >= "
-                                f"{CONVERGENCE['ess_min']} for every free parameter",
+                                f"{CONVERGENCE['ess_min']} for every free parameter on the stored "
+                                "draws, and the sampler's own stopping rule met on the whole kept "
+                                "chain (R-hat, ESS, > 50 tau) before the step cap",
             "rmse": total, "rmse_per_test": per, "identifiability": identifiability(sp, post),
             "sampler_steps": res.n_steps, "tau_max": float(np.max(res.tau)),
             "model_evaluations": res.n_evals}
