@@ -212,3 +212,26 @@ def test_noise_prior_overrides_that_would_be_ignored_are_refused():
             F.prepare(spec)
     ok = F.plan(camp, "test", F.FitConfig(tests=("h-267N-0.5Hz",), priors={"noise_phi": 0.5}))[0]
     assert F.prepare(ok)[2].noise_config()["phi_fixed"] == 0.5
+
+
+def test_interrupted_run_resumes_without_losing_steps(small_fit, tmp_path):
+    """A run stopped after 40 stored steps and resumed to 60 gives exactly the chain of an
+    uninterrupted 60-step run (positions, random state and the independence proposal are all
+    restored from the HDF5 file), and the first 40 steps are the stored ones."""
+    import emcee
+    lp, scales, _ = small_fit
+    kw = dict(nwalkers=32, chunk=20, min_steps=20, burn_rounds=2, burn_steps=10, burn_max_rounds=2,
+              n_random_starts=0, n_prior_starts=1, progress=False, tau_factor=1e9)
+    full = sample(lp, scales, seed=3, backend_path=tmp_path / "full.h5",
+                  cfg=SamplerConfig(max_steps=60, thin_output=1, **kw), resume=False)
+    part = tmp_path / "part.h5"
+    sample(lp, scales, seed=3, backend_path=part, cfg=SamplerConfig(max_steps=40, thin_output=1, **kw),
+           resume=False)
+    first = emcee.backends.HDFBackend(str(part), read_only=True).get_chain()
+    assert first.shape[0] == 40
+    res = sample(lp, scales, seed=3, backend_path=part,
+                 cfg=SamplerConfig(max_steps=60, thin_output=1, **kw), resume=True)
+    after = emcee.backends.HDFBackend(str(part), read_only=True).get_chain()
+    assert after.shape[0] == 60 and np.array_equal(after[:40], first)
+    assert np.array_equal(after, emcee.backends.HDFBackend(str(tmp_path / "full.h5"), read_only=True).get_chain())
+    assert res.n_steps == full.n_steps == 60

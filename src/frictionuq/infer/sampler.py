@@ -222,6 +222,43 @@ def _moves(cfg: SamplerConfig, proposal=None):
             (emcee.moves.DESnookerMove(), 0.1)]
 
 
+class _Flushing:
+    """Context manager over an open h5py file: flushes on exit instead of closing."""
+
+    def __init__(self, f):
+        self.f = f
+
+    def __enter__(self):
+        return self.f
+
+    def __exit__(self, *exc):
+        self.f.flush()
+        return False
+
+
+class OpenHDFBackend(emcee.backends.HDFBackend):
+    """emcee's HDF5 backend with the file kept open during a run: emcee opens and closes the
+    file on every step (about 3 ms a step, an eighth of a twin fit's time); here each step is
+    written and flushed to the open file, so an interruption still loses no finished step."""
+
+    _handle = None
+
+    def open(self, mode="r"):
+        if self._handle is not None:
+            return _Flushing(self._handle)
+        return super().open(mode)
+
+    def keep_open(self):
+        if self._handle is None:
+            import h5py
+            self._handle = h5py.File(self.filename, "a")
+
+    def close(self):
+        if self._handle is not None:
+            self._handle.close()
+            self._handle = None
+
+
 COORDS = "frictionuq unbounded logit-of-box coordinates v2 (independence proposal in attrs)"
 
 
@@ -234,7 +271,7 @@ def _open_backend(backend_path, nw, ndim, resume):
     backend_path.parent.mkdir(parents=True, exist_ok=True)
     if backend_path.exists() and resume:
         try:
-            be = emcee.backends.HDFBackend(str(backend_path))
+            be = OpenHDFBackend(str(backend_path))
             with be.open() as f:
                 coords = f[be.name].attrs.get("coordinates", "")
             if be.initialized and be.shape == (nw, ndim) and be.iteration > 0 and coords == COORDS:
@@ -243,7 +280,7 @@ def _open_backend(backend_path, nw, ndim, resume):
             pass
     if backend_path.exists():
         backend_path.unlink()
-    be = emcee.backends.HDFBackend(str(backend_path))
+    be = OpenHDFBackend(str(backend_path))
     be.reset(nw, ndim)
     with be.open("a") as f:
         f[be.name].attrs["coordinates"] = COORDS
@@ -330,9 +367,23 @@ def sample(logpost: LogPosterior, scales: RecordScales, seed: int,
         sampler.random_state = np.random.RandomState(seed % (2**32)).get_state()
 
     history = []
-    prev_tau = None
     converged = False
     n_done = resumed
+    if backend is not None:
+        backend.keep_open()
+    try:
+        n_done, converged = _run(sampler, state, cfg, sp, n_done, history, log)
+    finally:
+        if backend is not None:
+            backend.close()
+    return _result(sampler, cfg, sp, n_done, converged, theta_map, lp_map, logpost, t0,
+                   burn_in_steps, history)
+
+
+def _run(sampler, state, cfg, sp, n_done, history, log):
+    """The stored run in chunks until the convergence criteria or the step cap."""
+    prev_tau = None
+    converged = False
     while n_done < cfg.max_steps:
         n = min(cfg.chunk, cfg.max_steps - n_done)
         sampler.run_mcmc(state, n, progress=_progress(cfg), skip_initial_state_check=True)
@@ -356,7 +407,12 @@ def sample(logpost: LogPosterior, scales: RecordScales, seed: int,
         if tau_ok and h["r_hat_max"] <= cfg.r_hat_max and h["ess_min"] >= cfg.ess_min:
             converged = True
             break
+    return n_done, converged
 
+
+def _result(sampler, cfg, sp, n_done, converged, theta_map, lp_map, logpost, t0, burn_in_steps,
+            history) -> SampleResult:
+    ndim = sp.ndim
     burn = int(n_done * cfg.discard_fraction)
     tau = _tau(sampler.get_chain(discard=burn))
     thin = int(cfg.thin_output or max(1, int(np.max(tau) / 4)))
