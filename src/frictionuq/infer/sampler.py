@@ -129,10 +129,10 @@ def initial_ball(theta_map, cov, nwalkers, rng, space) -> np.ndarray:
     return np.clip(p, space.lo + 0.5 * margin, space.hi - 0.5 * margin)
 
 
-def reinitialise(chain: np.ndarray, log_prob: np.ndarray, nwalkers: int, rng) -> tuple[np.ndarray, int]:
-    """New walker positions drawn (without replacement) from the states of the second half of a
-    burn-in chain (steps, walkers, ndim), pooled over the walkers that are not stuck. Returns
-    (positions, number of stuck walkers)."""
+def pooled_states(chain: np.ndarray, log_prob: np.ndarray):
+    """States of the second half of a burn-in chain (steps, walkers, ndim) with finite log
+    posterior, pooled over the walkers that are not stuck (mean log-posterior more than
+    max(10, 3 sqrt(D/2)) below the median walker's). Returns (states, number of stuck walkers)."""
     n = chain.shape[0]
     half, lp = chain[n // 2:], log_prob[n // 2:]
     mean_lp = np.mean(lp, axis=0)
@@ -140,15 +140,22 @@ def reinitialise(chain: np.ndarray, log_prob: np.ndarray, nwalkers: int, rng) ->
     good = np.flatnonzero(mean_lp >= np.median(mean_lp) - tol)
     pool = half[:, good].reshape(-1, chain.shape[2])
     pool_lp = lp[:, good].ravel()
+    return pool[np.isfinite(pool_lp)], int(chain.shape[1] - good.size)
+
+
+def reinitialise(chain: np.ndarray, log_prob: np.ndarray, nwalkers: int, rng) -> tuple[np.ndarray, int]:
+    """New walker positions drawn (without replacement) from `pooled_states`. Returns
+    (positions, number of stuck walkers)."""
+    pool, stuck = pooled_states(chain, log_prob)
     # a rejected proposal repeats a state: draw distinct states only (two identical walkers
     # make the snooker move divide by zero)
-    pool = np.unique(pool[np.isfinite(pool_lp)], axis=0)
+    pool = np.unique(pool, axis=0)
     if pool.shape[0] >= nwalkers:
-        return pool[rng.choice(pool.shape[0], size=nwalkers, replace=False)], int(chain.shape[1] - good.size)
+        return pool[rng.choice(pool.shape[0], size=nwalkers, replace=False)], stuck
     p = pool[rng.choice(pool.shape[0], size=nwalkers, replace=True)]
     sd = np.std(pool, axis=0) if pool.shape[0] > 1 else np.ones(chain.shape[2])
     p = p + 1e-3 * np.where(sd > 0, sd, 1e-6) * rng.standard_normal(p.shape)
-    return p, int(chain.shape[1] - good.size)
+    return p, stuck
 
 
 def _tau(chain: np.ndarray) -> np.ndarray:
@@ -202,15 +209,8 @@ class IndependenceMove(emcee.moves.MHMove):
 
 
 def fit_proposal(chain: np.ndarray, log_prob: np.ndarray):
-    """(mean, covariance) of the second half of a burn-in round (steps, walkers, ndim), pooled
-    over the walkers that are not stuck (as `reinitialise`)."""
-    n = chain.shape[0]
-    half, lp = chain[n // 2:], log_prob[n // 2:]
-    mean_lp = np.mean(lp, axis=0)
-    tol = max(10.0, 3.0 * np.sqrt(chain.shape[2] / 2.0))
-    good = np.flatnonzero(mean_lp >= np.median(mean_lp) - tol)
-    pool = half[:, good].reshape(-1, chain.shape[2])
-    pool = pool[np.all(np.isfinite(pool), axis=1)]
+    """(mean, covariance) of a burn-in round's `pooled_states`."""
+    pool = pooled_states(chain, log_prob)[0]
     return pool.mean(axis=0), np.atleast_2d(np.cov(pool.T))
 
 
