@@ -75,3 +75,18 @@ def output_dir(path):
     os.replace(tmp, path)
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
+
+
+def check_replaceable(source: Path, out: Path, marker: str, source_what: str, out_what: str) -> None:
+    """Refuse an output folder that `output_dir` must not replace: the source folder itself, a
+    file, or a non-empty folder that is not a previous output (recognised by its `marker` file)."""
+    from .errors import InputError
+    source, out = Path(source), Path(out)
+    if out.resolve() == source.resolve():
+        raise InputError(f"--out {out}: must differ from the {source_what} folder")
+    if out.exists():
+        if not out.is_dir():
+            raise InputError(f"--out {out}: exists and is not a folder")
+        if any(out.iterdir()) and not (out / marker).is_file():
+            raise InputError(f"--out {out}: exists, is not empty and is not {out_what}; "
+                             "choose a new folder (it would be replaced)")

@@ -119,6 +119,15 @@ def _cmd_compare(a):
         return 1
 
 
+def _add_selection(s, max_steps_help: str) -> None:
+    """Seed, test selection and step cap, shared by the commands that run fits."""
+    s.add_argument("--seed", type=int, default=1)
+    s.add_argument("--test", action="append", metavar="ID", help="only this test (repeatable)")
+    s.add_argument("--kind", action="append", choices=["harmonic", "earthquake", "other"],
+                   help="only tests of this kind (repeatable)")
+    s.add_argument("--max-steps", type=int, default=None, help=max_steps_help)
+
+
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
     p = argparse.ArgumentParser(prog="frictionuq", description=__doc__.splitlines()[0])
@@ -153,11 +162,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--effect", action="append", metavar="NAME",
                    help="add an effect of the library (repeatable)")
     s.add_argument("--likelihood", choices=["iid", "ar1"], default="ar1")
-    s.add_argument("--seed", type=int, default=1)
-    s.add_argument("--test", action="append", metavar="ID", help="only this test (repeatable)")
-    s.add_argument("--kind", action="append", choices=["harmonic", "earthquake", "other"],
-                   help="only tests of this kind (repeatable)")
-    s.add_argument("--max-steps", type=int, default=None, help="cap on stored sampler steps")
+    _add_selection(s, "cap on stored sampler steps")
     s.set_defaults(func=_cmd_fit)
 
     s = sub.add_parser("law", help="fit the force-dependence law on a `fit --by applied` folder")
@@ -211,11 +216,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--likelihood", choices=["iid", "ar1"], default="ar1")
     s.add_argument("--offset", choices=["marginal", "shared"], default="marginal",
                    help="held-out test's load-cell offset: integrated out (default) or the training fit's")
-    s.add_argument("--seed", type=int, default=1)
-    s.add_argument("--test", action="append", metavar="ID", help="only this test (repeatable)")
-    s.add_argument("--kind", action="append", choices=["harmonic", "earthquake", "other"],
-                   help="only tests of this kind (repeatable)")
-    s.add_argument("--max-steps", type=int, default=None, help="cap on stored sampler steps per fit")
+    _add_selection(s, "cap on stored sampler steps per fit")
     s.set_defaults(func=_cmd_compare)
     return p
 

@@ -36,17 +36,6 @@ def _csv_bytes(rec: Record) -> bytes:
     return buf.getvalue().encode()
 
 
-def _check_out(camp_path: Path, out: Path) -> None:
-    if out.resolve() == camp_path.resolve():
-        raise InputError(f"--out {out}: must differ from the campaign folder")
-    if out.exists():
-        if not out.is_dir():
-            raise InputError(f"--out {out}: exists and is not a folder")
-        if any(out.iterdir()) and not (out / "manifest.json").is_file():
-            raise InputError(f"--out {out}: exists, is not empty and is not an ingested campaign; "
-                             "choose a new folder (it would be replaced)")
-
-
 def ingest(campaign_dir, out) -> dict:
     """Validate `campaign_dir` and write it in SI to `out`. Returns the manifest."""
     from . import __version__
@@ -54,7 +43,7 @@ def ingest(campaign_dir, out) -> dict:
     camp = load_campaign(camp_path)
     if camp.ingested:
         raise InputError(f"{camp_path}: already an ingested (SI) folder; nothing to ingest")
-    _check_out(camp_path, out)
+    atomic.check_replaceable(camp_path, out, "manifest.json", "campaign", "an ingested campaign")
     from .units import SI
     manifest = {
         "format": FORMAT, "package_version": __version__, "name": camp.name, "device": camp.device,

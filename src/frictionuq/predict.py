@@ -295,16 +295,6 @@ def predict(fit_dir, applied_si: float, t, x, *, eps: float = 0.0, n_draws: int 
 
 # ---------------------------------------------------------------- files
 
-def _check_out(fit_dir: Path, out: Path) -> None:
-    if out.resolve() == fit_dir.resolve():
-        raise InputError(f"--out {out}: must differ from the fit folder")
-    if out.exists():
-        if not out.is_dir():
-            raise InputError(f"--out {out}: exists and is not a folder")
-        if any(out.iterdir()) and not (out / "prediction.json").is_file():
-            raise InputError(f"--out {out}: exists, is not empty and is not a prediction folder; "
-                             "choose a new folder (it would be replaced)")
-
 
 def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied: float,
                      applied_unit: str | None = None, n_draws: int = 400, seed: int = 1,
@@ -319,7 +309,7 @@ def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied
     if (input_csv is None) == (harmonic is None):
         raise InputError("give exactly one input: a displacement CSV or a harmonic (amplitude, frequency)")
     summary = load_summary(fit_dir)
-    _check_out(fit_dir, out_dir)
+    atomic.check_replaceable(fit_dir, out_dir, "prediction.json", "fit", "a prediction folder")
     unit, unit_src = (applied_unit, "given") if applied_unit else campaign_applied_unit(fit_dir, summary)
     try:
         U.factor("applied", unit)
