@@ -1,4 +1,4 @@
-"""Mechanical advantage and friction coefficient per fitted applied force (issue 3, item 8).
+"""Mechanical advantage and friction coefficient per fitted applied force (issue 3, item 7).
 
 For every fit at one applied force F (summary.json fits[i]["applied"] > 0), per direction:
 
