@@ -8,7 +8,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 PYTHON_FOUND = $(shell tools/find-python)
 
-.PHONY: demo test install install-test bench clean-venv
+.PHONY: demo test install install-test bench bench-fit clean-venv
 
 demo: $(VENV)/.installed
 	$(VENV)/bin/frictionuq ingest data/brfd-arts-d2 --out out/brfd-arts-d2
@@ -19,6 +19,9 @@ test: $(VENV)/.installed-test
 
 bench: $(VENV)/.installed-test
 	$(PY) benchmarks/bench_simulator.py
+
+bench-fit: $(VENV)/.installed-test
+	$(PY) benchmarks/bench_fit.py
 
 install: $(VENV)/.installed
 install-test: $(VENV)/.installed-test
