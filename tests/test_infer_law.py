@@ -55,7 +55,7 @@ def test_heldout_prefers_the_generating_family():
     assert d.sum() < 2 * math.sqrt(d.size * np.var(d)) + 1.0
 
 
-def _fake_fit_dir(tmp_path, fc_of_a, k2=5e4, n=400, seed=0):
+def _fake_fit_dir(tmp_path, fc_of_a, k2=5e4, n=400, seed=0, A=A):
     """A `fit --by applied` folder whose posteriors are known: fc_fwd log-normal around
     fc_of_a(a) (sd 2 %), k2 shared, fs_fwd = 1.2 fc_fwd (perfectly correlated)."""
     rng = np.random.default_rng(seed)
@@ -112,3 +112,15 @@ def test_law_needs_levels_and_a_folder(tmp_path):
         law.fit_law(tmp_path)
     with pytest.raises(InputError, match="law.json"):
         law.draws_at(tmp_path, 100.0, 10, np.random.default_rng(0))
+
+
+def test_zero_force_level_is_left_out_of_the_law(tmp_path):
+    """A campaign with a test at zero applied force (the ARTS d2 0 lb sines): the level is fitted
+    but lies outside every law family's support (log force), so the law leaves it out and says
+    so, instead of failing."""
+    d = _fake_fit_dir(tmp_path, lambda a: 1.5 * a + 30.0, A=(0.0, 100.0, 200.0, 300.0))
+    doc = law.fit_law(d, seed=3)
+    assert [L["applied"] for L in doc["levels"]] == [100.0, 200.0, 300.0]
+    assert doc["excluded_levels"][0]["id"].startswith("applied-0")
+    draws, _, _ = law.draws_at(d, 150.0, 100, np.random.default_rng(0))
+    assert np.all(np.isfinite(draws["fc_fwd"]))

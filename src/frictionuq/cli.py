@@ -119,6 +119,56 @@ def _cmd_compare(a):
         return 1
 
 
+def _cmd_run(a):
+    from .pipeline import plan_status, run
+    from .workflow import load_workflow
+    wf = load_workflow(a.workflow)
+    targets = a.targets or ["all"]
+    if a.jobs < 1:
+        raise ValueError(f"-j/--jobs must be >= 1, got {a.jobs}")
+    if a.dry_run:
+        rows = plan_status(wf, targets, a.force)
+        for name, runs, why in rows:
+            print(f"{'run ' if runs else 'skip'}  {name:<40} {why}")
+        n = sum(r[1] for r in rows)
+        print(f"dry run: {n} of {len(rows)} task(s) would run; run folder {wf.out}")
+        return
+    r = run(wf, targets, jobs=a.jobs, scheduler=a.scheduler, force=a.force)
+    if r.failed or r.skipped:
+        for n, why in {**r.failed, **r.skipped}.items():
+            print(f"not done: {n}: {why}")
+        print(f"{len(r.failed)} task(s) failed, {len(r.skipped)} skipped; run the same command "
+              "again to retry only those (finished tasks are cached)")
+        return 1
+    if not r.ran:
+        print(f"nothing to do: {wf.name} is up to date ({len(r.cached)} task(s) cached)")
+    else:
+        print(f"{wf.name}: {len(r.ran)} task(s) ran, {len(r.cached)} up to date, "
+              f"{r.seconds:.0f} s")
+    rep = wf.report_dir / "index.html"
+    if rep.is_file():
+        print(f"report: {rep}")
+
+
+def _cmd_status(a):
+    from .pipeline import plan_status
+    from .workflow import load_workflow
+    wf = load_workflow(a.workflow)
+    rows = plan_status(wf, ["all"])
+    for name, runs, why in rows:
+        print(f"{'stale' if runs else 'ok   '}  {name:<40} {why}")
+    stale = sum(r[1] for r in rows)
+    print(f"{wf.name}: {len(rows) - stale} up to date, {stale} stale; run folder {wf.out}")
+
+
+def _cmd_clean(a):
+    from .pipeline import clean
+    from .workflow import load_workflow
+    wf = load_workflow(a.workflow)
+    gone = clean(wf)
+    print(f"removed {', '.join(map(str, gone))}" if gone else f"nothing to remove for {wf.name}")
+
+
 def _add_selection(s, max_steps_help: str) -> None:
     """Seed, test selection and step cap, shared by the commands that run fits."""
     s.add_argument("--seed", type=int, default=1)
@@ -218,6 +268,25 @@ def build_parser() -> argparse.ArgumentParser:
                    help="held-out test's load-cell offset: integrated out (default) or the training fit's")
     _add_selection(s, "cap on stored sampler steps per fit")
     s.set_defaults(func=_cmd_compare)
+
+    s = sub.add_parser("run", help="run a workflow (make-like: only what is out of date)")
+    s.add_argument("workflow", metavar="WORKFLOW", help="workflow file (TOML, e.g. workflows/quick.toml)")
+    s.add_argument("targets", nargs="*", metavar="TARGET",
+                   help="ingest, fit, predict, compare, report or all (default), or a task name")
+    s.add_argument("-j", "--jobs", type=int, default=1, help="fits in parallel (local processes)")
+    s.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                   help="send fits to this Dask distributed scheduler (e.g. tcp://host:8786)")
+    s.add_argument("--force", action="store_true", help="rerun the targets' tasks even if up to date")
+    s.add_argument("--dry-run", action="store_true", help="print the plan: what would run and why")
+    s.set_defaults(func=_cmd_run)
+
+    s = sub.add_parser("status", help="which tasks of a workflow are up to date, which are stale and why")
+    s.add_argument("workflow", metavar="WORKFLOW")
+    s.set_defaults(func=_cmd_status)
+
+    s = sub.add_parser("clean", help="remove a workflow's run folder and report")
+    s.add_argument("workflow", metavar="WORKFLOW")
+    s.set_defaults(func=_cmd_clean)
     return p
 
 

@@ -265,16 +265,35 @@ def compare_level(tests, configs: dict[str, FitConfig], seed: int, log=None, *,
         m["converged"] = all(f["converged"] for f in m["fits"].values())
         m["seconds"] = time.perf_counter() - t0
         out["models"][name] = m
-    if cv:
-        names = list(configs)
-        for i, a in enumerate(names):
-            for b in names[i + 1:]:
-                ea = [out["models"][a]["elpd_per_test"][t] for t in ids]
-                eb = [out["models"][b]["elpd_per_test"][t] for t in ids]
-                d = elpd_difference(ea, eb)
-                out["pairs"].append({"a": a, "b": b, "delta_elpd": d["delta_elpd"], "se": d["se"],
-                                     "delta_per_test": dict(zip(ids, np.subtract(ea, eb).tolist()))})
-    return out
+    return add_pairs(out)
+
+
+def add_pairs(level: dict) -> dict:
+    """Fill level["pairs"] with the paired ELPD differences of its models (in their order)."""
+    level["pairs"] = []
+    if not level["cross_validated"]:
+        return level
+    ids, names = level["tests"], list(level["models"])
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            ea = [level["models"][a]["elpd_per_test"][t] for t in ids]
+            eb = [level["models"][b]["elpd_per_test"][t] for t in ids]
+            d = elpd_difference(ea, eb)
+            level["pairs"].append({"a": a, "b": b, "delta_elpd": d["delta_elpd"], "se": d["se"],
+                                   "delta_per_test": dict(zip(ids, np.subtract(ea, eb).tolist()))})
+    return level
+
+
+def merge_levels(parts: list[dict]) -> dict:
+    """One level's result from compare_level runs on single models (the pipeline runs each model
+    of a level as its own task): models in the order given, pairs recomputed."""
+    out = dict(parts[0])
+    out["models"] = {}
+    for p in parts:
+        if p["tests"] != out["tests"]:
+            raise ValueError("compare: the parts of a level were run on different tests")
+        out["models"].update(p["models"])
+    return add_pairs(out)
 
 
 def default_configs(likelihood: str = "ar1", seed: int = 1, sampler=None) -> dict[str, FitConfig]:
@@ -317,7 +336,6 @@ def compare_campaign(campaign_path, out_dir, configs: dict[str, FitConfig] | Non
     and out_dir/compare.csv (atomically). configs: {name: FitConfig}, default three_stage and
     lugre with the default fit settings; kinds / tests: only tests of these kinds / ids; seed:
     default the first configuration's. Bad input is refused (InputError) before any sampling."""
-    from .. import __version__
     from ..campaign import load_campaign
     log = log or (lambda m: None)
     configs = check_configs(dict(configs) if configs else default_configs())
@@ -343,7 +361,15 @@ def compare_campaign(campaign_path, out_dir, configs: dict[str, FitConfig] | Non
                            offset=offset, work_dir=wd)
         lv["id"] = spec.id
         levels.append(lv)
-    result = {"package_version": __version__, "campaign": camp.name,
+    return write_compare(out_dir, camp.name, campaign_path, configs, levels, seed=seed,
+                         offset=offset, kinds=kinds, tests=tests)
+
+
+def write_compare(out_dir, campaign: str, campaign_path, configs: dict, levels: list[dict], *,
+                  seed: int, offset: str, kinds=None, tests=None) -> dict:
+    """Write out_dir/compare.json and compare.csv (atomically) for compared levels."""
+    from .. import __version__
+    result = {"package_version": __version__, "campaign": campaign,
               "campaign_path": str(campaign_path), "seed": seed, "offset": offset,
               "config": {"models": {n: c.to_json() for n, c in configs.items()},
                          "kinds": list(kinds) if kinds else None,

@@ -210,7 +210,7 @@ def fit_campaign(campaign_path, out_dir, by: str = "applied", config: FitConfig 
                                  "the campaign's unit for the applied force, used by the CLI"},
                "config": (config or FitConfig()).to_json(), "fits": fits}
     atomic.write_json(Path(out_dir) / "summary.json", jsonable(summary))
-    if by == "applied" and len(fits) >= 2:
+    if by == "applied" and sum(1 for f in fits if (f.get("applied") or 0) > 0) >= 2:
         from .law import fit_law
         doc = fit_law(out_dir, seed=(config or FitConfig()).seed, log=log or (lambda m: None))
         summary["law"] = {"file": "law.json", "family": doc["family"]}

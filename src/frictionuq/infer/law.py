@@ -205,9 +205,15 @@ def fit_law(fit_dir, family: str = "auto", seed: int = 1, compare: bool = True, 
     if family != "auto" and family not in FAMILIES:
         raise InputError(f"--family must be auto or one of {', '.join(FAMILIES)}, got {family!r}")
     levels, summary = level_draws(fit_dir)
+    excluded = [L["id"] for L in levels if L["applied"] <= 0]
+    levels = [L for L in levels if L["applied"] > 0]
+    if excluded:
+        log(f"law: levels at zero applied force left out ({', '.join(excluded)}): every family "
+            "is a function of log force, and a level at zero force is outside its support")
     if len(levels) < 2:
         raise InputError(f"{fit_dir}: a force-dependence law needs fits at 2 or more applied forces "
-                         f"(found {len(levels)}); fit with --by applied on a campaign with several levels")
+                         f"> 0 (found {len(levels)}); fit with --by applied on a campaign with "
+                         "several levels")
     models = {(L["model"], L["effects"]) for L in levels}
     if len(models) > 1:
         raise InputError(f"{fit_dir}: the fits use different models/effects {sorted(models)}")
@@ -248,6 +254,8 @@ def fit_law(fit_dir, family: str = "auto", seed: int = 1, compare: bool = True, 
            "family_requested": family, "force_dependent": dep,
            "levels": [{"id": L["id"], "applied": L["applied"], "converged": L["converged"]}
                       for L in levels],
+           "excluded_levels": [{"id": i, "reason": "zero applied force (outside the laws' support)"}
+                               for i in excluded],
            "comparison": comparison,
            "comparison_rule": "leave-one-level-out ELPD of the per-level posterior means of the "
                               "force-dependent parameters (log space), summed; SE over levels",
@@ -292,6 +300,7 @@ def draws_at(fit_dir, applied_si: float, n: int, rng):
     than, that level's own posterior (the scatter term); predict uses the posterior there."""
     law = load_law(fit_dir)
     levels, _ = level_draws(fit_dir)
+    levels = [L for L in levels if L["applied"] > 0]
     a = float(applied_si)
     if not np.isfinite(a) or a <= 0:
         raise InputError(f"applied force must be > 0, got {applied_si!r}")

@@ -1,0 +1,180 @@
+"""The task graph of a workflow: which stage tasks exist, what each depends on, and its cache key.
+
+    ingest -> fit:<level> (one per applied force or test) -> fit/summary (summary.json, the
+    force-dependence law, mechanical advantage) -> predict:<name> (validation of measured tests,
+    harmonics, ground motions); ingest -> compare:<level>:<model> -> compare/summary;
+    everything -> report
+
+A task's key is the SHA-256 of its name, the content it reads (the source files of the tests it
+uses, with their campaign entries), the workflow settings it uses, the keys of the tasks it
+depends on and the package version. Changing one test or one setting therefore changes the keys
+of exactly the tasks that depend on it. Keys are known before anything runs (the campaign's test
+table is read, not its records), so `--dry-run` and `status` can say what would run and why.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import InputError
+
+STAGES = ("ingest", "fit", "predict", "compare", "report")
+TARGETS = STAGES + ("all",)
+
+
+@dataclass
+class Task:
+    name: str                      # e.g. "fit:applied-36lb"
+    stage: str                     # one of STAGES
+    deps: list[str]
+    parts: dict                    # what the key is made of (JSON-able)
+    outputs: list[str]             # files/folders, relative to the run folder or absolute
+    args: dict = field(default_factory=dict)   # what tasks.execute needs besides the workflow
+    heavy: bool = False            # sampling: sent to a worker process / the Dask cluster
+    key: str = ""
+
+
+def _h(obj) -> str:
+    return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()
+
+
+def _file_hashes(camp) -> dict[str, str]:
+    from ..campaign import sha256_file
+    return {t.id: sha256_file(Path(camp.path) / t.file) for t in camp.tests}
+
+
+def _test_parts(tests, hashes) -> list[dict]:
+    return [{"id": t.id, "applied": t.applied, "kind": t.kind, "frequency_hz": t.frequency_hz,
+             "amplitude": t.amplitude, "sha256": hashes[t.id]} for t in tests]
+
+
+def _select(camp, wf, ids, kinds, where: str):
+    known = {t.id for t in camp.tests}
+    bad = [i for i in ids if i not in known]
+    if bad:
+        raise InputError(f"{wf.path}: {where}: campaign {camp.name!r} has no test {bad[0]!r}; "
+                         f"its tests: {', '.join(sorted(known))}")
+    return [t for t in camp.tests if (not ids or t.id in ids) and (not kinds or t.kind in kinds)]
+
+
+def plan(wf) -> dict[str, Task]:
+    """The tasks of a workflow, in dependency order, keys filled in."""
+    from .. import __version__
+    from ..campaign import load_campaign
+    from ..infer.fit import plan as fit_plan
+    camp = load_campaign(wf.campaign, read_records=False)
+    hashes = _file_hashes(camp)
+    cfg = wf.config
+    tasks: list[Task] = []
+    toml = Path(wf.campaign) / "campaign.toml"
+    toml_hash = hashlib.sha256(toml.read_bytes()).hexdigest()
+    tasks.append(Task("ingest", "ingest", [], {"campaign_toml": toml_hash, "records": hashes},
+                      ["ingest"]))
+
+    f = cfg["fit"]
+    fit_tests = _select(camp, wf, f["tests"], f["kinds"], "[fit] tests/kinds")
+    if not fit_tests:
+        raise InputError(f"{wf.path}: [fit] tests/kinds select no test of campaign {camp.name!r}")
+    fcfg = wf.fit_config()
+    specs = fit_plan(camp, f["by"], fcfg)
+    fit_names = []
+    for s in specs:
+        name = f"fit:{s.id}"
+        fit_names.append(name)
+        tasks.append(Task(name, "fit", ["ingest"],
+                          {"fit": wf.section_hash("fit"), "seed": wf.seed,
+                           "tests": _test_parts(s.tests, hashes)},
+                          [f"fit/{s.id}"], {"fit_id": s.id, "tests": [t.id for t in s.tests]},
+                          heavy=True))
+    tasks.append(Task("fit/summary", "fit", fit_names, {"law": wf.section_hash("law")},
+                      ["fit/summary.json", "fit/law.json", "advantage"]))
+
+    p = cfg["predict"]
+    pred_names = []
+    if p["validate"]:
+        vt = _select(camp, wf, p["validate"], [], "[predict] validate")
+        pred_names.append("predict:validation")
+        tasks.append(Task("predict:validation", "predict", ["ingest", "fit/summary"],
+                          {"n_draws": p["n_draws"], "seed": wf.seed,
+                           "tests": _test_parts(vt, hashes)},
+                          ["predict/validation"], {"tests": [t.id for t in vt]}))
+    for e in p["harmonic"] + p["ground_motion"]:
+        name = f"predict:{e['name']}"
+        pred_names.append(name)
+        outs = [f"predict/{e['name']}"] + ([f"predict/inputs/{e['name']}.csv"]
+                                          if "record" in e else [])
+        parts = {"n_draws": p["n_draws"], "seed": wf.seed, "input": e}
+        if "record" in e:
+            from ..campaign import sha256_file
+            from ..groundmotion import RECORDS, ground_motions_dir
+            ref = RECORDS[e["record"]]
+            gm = ground_motions_dir() / ref.folder / ref.file
+            parts["record_sha256"] = sha256_file(gm) if gm.is_file() else "missing"
+        tasks.append(Task(name, "predict", ["fit/summary"], parts,
+                          outs, {"input": e}))
+
+    c = cfg["compare"]
+    cmp_names = []
+    if c["enabled"]:
+        ct = _select(camp, wf, c["tests"] or f["tests"], c["kinds"] or f["kinds"],
+                     "[compare] tests/kinds")
+        from dataclasses import replace
+        levels = fit_plan(camp, "applied", replace(fcfg, tests=tuple(t.id for t in ct), kinds=None))
+        for lv in levels:
+            for m in c["models"]:
+                name = f"compare:{lv.id}:{m}"
+                cmp_names.append(name)
+                tasks.append(Task(name, "compare", ["ingest"],
+                                  {"compare": wf.section_hash("compare"), "fit": wf.section_hash("fit"),
+                                   "seed": wf.seed, "tests": _test_parts(lv.tests, hashes)},
+                                  [f"compare/{lv.id}/{m}"],
+                                  {"level": lv.id, "model": m, "tests": [t.id for t in lv.tests]},
+                                  heavy=True))
+        tasks.append(Task("compare/summary", "compare", cmp_names, {},
+                          ["compare/compare.json", "compare/compare.csv"],
+                          {"levels": [lv.id for lv in levels]}))
+        cmp_names = ["compare/summary"]
+
+    if cfg["report"]["enabled"]:
+        deps = ["ingest", "fit/summary"] + pred_names + cmp_names
+        tasks.append(Task("report", "report", deps,
+                          {"report": wf.section_hash("report"), "workflow": wf.section_hash("workflow")},
+                          [str(Path(wf.report_dir) / "index.html")]))
+
+    by_name = {t.name: t for t in tasks}
+    for t in tasks:        # dependency order: every dep precedes its dependents
+        t.key = _h({"task": t.name, "parts": t.parts, "version": __version__,
+                    "deps": {d: by_name[d].key for d in t.deps}})
+    return by_name
+
+
+def closure(tasks: dict[str, Task], targets) -> list[str]:
+    """The tasks needed for targets (stage names or task names, 'all'), in dependency order."""
+    targets = list(targets) or ["all"]
+    wanted = set()
+    for tg in targets:
+        if tg == "all":
+            wanted.update(tasks)
+        elif tg in STAGES:
+            wanted.update(n for n, t in tasks.items() if t.stage == tg)
+        elif tg in tasks:
+            wanted.add(tg)
+        elif tg == "discrepancy":
+            raise InputError("target 'discrepancy': the discrepancy stage is not part of the "
+                             "pipeline yet (issue 5); targets: " + ", ".join(TARGETS))
+        else:
+            raise InputError(f"unknown target {tg!r}; targets: {', '.join(TARGETS)} or a task "
+                             f"name ({', '.join(tasks)})")
+    if not wanted:
+        raise InputError(f"targets {targets}: the workflow has no such tasks (is the stage "
+                         "disabled in the workflow file?)")
+    need = set()
+    stack = list(wanted)
+    while stack:
+        n = stack.pop()
+        if n not in need:
+            need.add(n)
+            stack.extend(tasks[n].deps)
+    return [n for n in tasks if n in need]

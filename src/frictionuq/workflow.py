@@ -1,0 +1,332 @@
+"""Workflow files (TOML in workflows/): what `frictionuq run` does, read and validated here.
+
+A workflow names a campaign, the fits to run, the sampler and likelihood settings, the
+prediction inputs and the report. Every key is checked: an unknown key or a bad value is refused
+with the file, the key and the problem (InputError, exit code 2 in the CLI). Paths are relative
+to the workflow file's folder. Units: as the CLI's, SI for lengths (`amplitude_m`, `peak_m`),
+the campaign's own applied unit for `applied` (e.g. lb).
+
+    [workflow]  name (required), campaign (required), description, seed = 1,
+                output = "../out/<name>", report = "../reports/<name>"
+    [fit]       by = "applied" | "test", model = "three_stage" | "lugre", effects = [],
+                likelihood = "ar1" | "iid", tests = [...], kinds = [...], samples_per_cycle = 400,
+                eps = "auto" | metres, n_predictive = 200, [fit.priors] (spec names: a number
+                fixes the parameter, a table {dist, lower, upper, mu, sd} sets its prior),
+                [fit.sampler] (frictionuq.infer.sampler.SamplerConfig fields)
+    [law]       enabled = true, family = "auto" | "linear" | "threshold" | "saturating"
+    [predict]   n_draws = 400, validate = [test ids of the campaign, predicted and scored],
+                [[predict.harmonic]] amplitude_m, frequency_hz, applied (, name)
+                [[predict.ground_motion]] record (a data/ground-motions key), peak_m, applied,
+                                          rate_hz = 256 (, name)
+    [compare]   enabled = false, models = ["three_stage", "lugre"], tests/kinds (default: the
+                fit's), samples_per_cycle (default: the fit's), [compare.sampler] (default: the
+                fit's)
+    [report]    enabled = true, title, published = "none" | "brfd" | "mfd"
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+import re
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+from .errors import InputError
+
+NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]*$")
+MODELS = ("three_stage", "lugre")
+LIKELIHOODS = ("ar1", "iid")
+KINDS = ("harmonic", "earthquake", "other")
+FAMILIES = ("auto", "linear", "threshold", "saturating")
+PUBLISHED = ("none", "brfd", "mfd")
+
+SECTIONS = {
+    "workflow": {"name", "description", "campaign", "seed", "output", "report"},
+    "fit": {"by", "model", "effects", "likelihood", "tests", "kinds", "samples_per_cycle", "eps",
+            "n_predictive", "priors", "sampler"},
+    "law": {"enabled", "family"},
+    "predict": {"n_draws", "validate", "harmonic", "ground_motion"},
+    "compare": {"enabled", "models", "tests", "kinds", "samples_per_cycle", "sampler"},
+    "report": {"enabled", "title", "published"},
+}
+HARMONIC_KEYS = {"name", "amplitude_m", "frequency_hz", "applied"}
+GROUND_KEYS = {"name", "record", "peak_m", "applied", "rate_hz"}
+
+
+@dataclass
+class Workflow:
+    path: Path                 # the workflow file
+    sha256: str                # of its bytes
+    config: dict               # every section with its defaults filled in (JSON-able)
+    campaign: Path
+    out: Path                  # the run folder (stage outputs, cache, logs)
+    report_dir: Path           # reports/<name>/ (index.html)
+
+    @property
+    def name(self) -> str:
+        return self.config["workflow"]["name"]
+
+    @property
+    def seed(self) -> int:
+        return self.config["workflow"]["seed"]
+
+    def section_hash(self, *names: str) -> str:
+        """Content hash of some sections (canonical JSON): part of the stage cache keys."""
+        doc = {n: self.config[n] for n in names}
+        return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
+
+    def fit_config(self, compare_model: str | None = None):
+        """The FitConfig of the fits (or, with compare_model, of that comparison model)."""
+        from .infer.fit import FitConfig
+        from .infer.sampler import SamplerConfig
+        f = self.config["fit"]
+        c = self.config["compare"]
+        if compare_model is None:
+            sampler, spc, model, effects = f["sampler"], f["samples_per_cycle"], f["model"], f["effects"]
+        else:
+            sampler = c["sampler"] if c["sampler"] is not None else f["sampler"]
+            spc = c["samples_per_cycle"] or f["samples_per_cycle"]
+            model = compare_model
+            effects = f["effects"] if compare_model == f["model"] else []
+        return FitConfig(model=model, effects=tuple(effects), likelihood=f["likelihood"],
+                         priors=dict(f["priors"]) if compare_model in (None, f["model"]) else {},
+                         samples_per_cycle=spc, eps=f["eps"], n_predictive=f["n_predictive"],
+                         kinds=tuple(f["kinds"]) if f["kinds"] else None,
+                         tests=tuple(f["tests"]) if f["tests"] else None,
+                         sampler=SamplerConfig(**{**sampler, "progress": False}),
+                         seed=self.seed)
+
+
+class _Checker:
+    """Typed getters that name the file and the key in every error."""
+
+    def __init__(self, path: Path):
+        self.path = path
+
+    def fail(self, key: str, problem: str):
+        raise InputError(f"{self.path}: {key}: {problem}")
+
+    def table(self, doc: dict, key: str) -> dict:
+        v = doc.get(key, {})
+        if not isinstance(v, dict):
+            self.fail(f"[{key}]", f"must be a table, got {type(v).__name__}")
+        return v
+
+    def unknown(self, table: dict, allowed, where: str) -> None:
+        extra = sorted(set(table) - set(allowed))
+        if extra:
+            self.fail(f"{where}.{extra[0]}" if where else extra[0],
+                      f"unknown key; allowed: {', '.join(sorted(allowed))}")
+
+    def str_(self, t, key, where, default=None, choices=None, required=False):
+        if key not in t:
+            if required:
+                self.fail(f"{where}.{key}", "missing (required)")
+            return default
+        v = t[key]
+        if not isinstance(v, str) or not v:
+            self.fail(f"{where}.{key}", f"must be a non-empty string, got {v!r}")
+        if choices and v not in choices:
+            self.fail(f"{where}.{key}", f"must be one of {', '.join(choices)}, got {v!r}")
+        return v
+
+    def bool_(self, t, key, where, default):
+        v = t.get(key, default)
+        if not isinstance(v, bool):
+            self.fail(f"{where}.{key}", f"must be true or false, got {v!r}")
+        return v
+
+    def num(self, t, key, where, default=None, integer=False, minimum=None, positive=False,
+            required=False):
+        if key not in t:
+            if required:
+                self.fail(f"{where}.{key}", "missing (required)")
+            return default
+        v = t[key]
+        ok = isinstance(v, int) if integer else isinstance(v, (int, float))
+        if isinstance(v, bool) or not ok or not math.isfinite(v):
+            self.fail(f"{where}.{key}", f"must be {'an integer' if integer else 'a number'}, got {v!r}")
+        if positive and not v > 0:
+            self.fail(f"{where}.{key}", f"must be > 0, got {v!r}")
+        if minimum is not None and v < minimum:
+            self.fail(f"{where}.{key}", f"must be >= {minimum}, got {v!r}")
+        return v
+
+    def strings(self, t, key, where, choices=None):
+        v = t.get(key, [])
+        if not isinstance(v, list) or not all(isinstance(s, str) and s for s in v):
+            self.fail(f"{where}.{key}", f"must be a list of strings, got {v!r}")
+        for s in v:
+            if choices and s not in choices:
+                self.fail(f"{where}.{key}", f"{s!r} is not one of {', '.join(choices)}")
+        if len(set(v)) != len(v):
+            self.fail(f"{where}.{key}", "lists an entry twice")
+        return list(v)
+
+
+def _sampler(c: _Checker, t: dict, where: str) -> dict:
+    from .infer.sampler import SamplerConfig
+    if not isinstance(t, dict):
+        c.fail(where, "must be a table of sampler settings")
+    fields = {f.name: f for f in dataclasses.fields(SamplerConfig)}
+    fields.pop("progress")               # the pipeline shows its own progress
+    c.unknown(t, fields, where)
+    out = {}
+    for name, f in fields.items():
+        if name not in t:
+            continue
+        typ = str(f.type)
+        if t[name] is None:
+            c.fail(f"{where}.{name}", "must be given a value (omit the key for the default)")
+        if typ.startswith("bool"):
+            out[name] = c.bool_(t, name, where, None)
+        else:
+            out[name] = c.num(t, name, where, integer=typ.startswith("int"),
+                              minimum=0 if name.startswith("n_") else None,
+                              positive=not name.startswith("n_"))
+    if "min_steps" in out and "max_steps" in out and out["min_steps"] > out["max_steps"]:
+        c.fail(f"{where}.min_steps", f"({out['min_steps']}) exceeds max_steps ({out['max_steps']})")
+    try:
+        SamplerConfig(**out)
+    except (TypeError, ValueError) as e:
+        c.fail(where, str(e))
+    return out
+
+
+def _priors(c: _Checker, t, where: str) -> dict:
+    from .infer.fit import _check_noise_overrides
+    from .infer.priors import apply_overrides
+    if not isinstance(t, dict):
+        c.fail(where, "must be a table {parameter: number or {dist, lower, upper}}")
+    try:
+        apply_overrides({}, t, source=f"{c.path}: {where}")
+        _check_noise_overrides(t, f"{c.path}: {where}")
+    except InputError:
+        raise
+    return dict(t)
+
+
+def _fit(c: _Checker, t: dict) -> dict:
+    from . import params as P
+    w = "[fit]"
+    c.unknown(t, SECTIONS["fit"], "fit")
+    eps = t.get("eps", "auto")
+    if eps != "auto":
+        eps = c.num(t, "eps", w, minimum=0)
+    model = c.str_(t, "model", w, "three_stage", MODELS)
+    effects = c.strings(t, "effects", w, tuple(P.EFFECTS))
+    try:
+        P.check_effects({e: {} for e in effects}, model)
+    except ValueError as e:
+        c.fail(f"{w}.effects", str(e))
+    return {"by": c.str_(t, "by", w, "applied", ("applied", "test")), "model": model,
+            "effects": effects, "likelihood": c.str_(t, "likelihood", w, "ar1", LIKELIHOODS),
+            "tests": c.strings(t, "tests", w), "kinds": c.strings(t, "kinds", w, KINDS),
+            "samples_per_cycle": c.num(t, "samples_per_cycle", w, 400.0, positive=True),
+            "eps": eps, "n_predictive": c.num(t, "n_predictive", w, 200, integer=True, positive=True),
+            "priors": _priors(c, t.get("priors", {}), "[fit.priors]"),
+            "sampler": _sampler(c, t.get("sampler", {}), "[fit.sampler]")}
+
+
+def _entries(c: _Checker, t: dict, key: str, allowed: set, where: str) -> list[dict]:
+    v = t.get(key, [])
+    if not isinstance(v, list) or not all(isinstance(e, dict) for e in v):
+        c.fail(f"{where}.{key}", "must be an array of tables ([[predict.%s]])" % key)
+    for i, e in enumerate(v):
+        c.unknown(e, allowed, f"[[predict.{key}]][{i}]")
+    return v
+
+
+def _predict(c: _Checker, t: dict) -> dict:
+    w = "[predict]"
+    c.unknown(t, SECTIONS["predict"], "predict")
+    out = {"n_draws": c.num(t, "n_draws", w, 400, integer=True, positive=True),
+           "validate": c.strings(t, "validate", w), "harmonic": [], "ground_motion": []}
+    names = set()
+
+    def named(e, default, where):
+        n = c.str_(e, "name", where, default)
+        if not NAME.match(n):
+            c.fail(f"{where}.name", f"{n!r} is not a valid name (letters, digits, . _ + -)")
+        if n in names or n == "validation":
+            c.fail(f"{where}.name", f"{n!r} is used twice (or is the reserved 'validation')")
+        names.add(n)
+        return n
+    for i, e in enumerate(_entries(c, t, "harmonic", HARMONIC_KEYS, w)):
+        wh = f"[[predict.harmonic]][{i}]"
+        amp = c.num(e, "amplitude_m", wh, positive=True, required=True)
+        f = c.num(e, "frequency_hz", wh, positive=True, required=True)
+        a = c.num(e, "applied", wh, minimum=0, required=True)
+        out["harmonic"].append({"name": named(e, f"harmonic-{amp * 1e3:g}mm-{f:g}Hz-{a:g}", wh),
+                                "amplitude_m": amp, "frequency_hz": f, "applied": a})
+    for i, e in enumerate(_entries(c, t, "ground_motion", GROUND_KEYS, w)):
+        wh = f"[[predict.ground_motion]][{i}]"
+        from .groundmotion import RECORDS
+        rec = c.str_(e, "record", wh, required=True, choices=tuple(RECORDS))
+        peak = c.num(e, "peak_m", wh, positive=True, required=True)
+        a = c.num(e, "applied", wh, minimum=0, required=True)
+        out["ground_motion"].append({"name": named(e, f"{rec}-{a:g}", wh), "record": rec,
+                                     "peak_m": peak, "applied": a,
+                                     "rate_hz": c.num(e, "rate_hz", wh, 256.0, positive=True)})
+    return out
+
+
+def _compare(c: _Checker, t: dict) -> dict:
+    w = "[compare]"
+    c.unknown(t, SECTIONS["compare"], "compare")
+    models = c.strings(t, "models", w, MODELS) if "models" in t else list(MODELS)
+    if len(models) < 2:
+        c.fail(f"{w}.models", "a comparison needs two models")
+    return {"enabled": c.bool_(t, "enabled", w, False), "models": models,
+            "tests": c.strings(t, "tests", w), "kinds": c.strings(t, "kinds", w, KINDS),
+            "samples_per_cycle": c.num(t, "samples_per_cycle", w, None, positive=True),
+            "sampler": _sampler(c, t["sampler"], "[compare.sampler]") if "sampler" in t else None}
+
+
+def load_workflow(path) -> Workflow:
+    """Read and validate a workflow file. Raises InputError naming the file, key and problem."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: workflow file not found")
+    raw = path.read_bytes()
+    try:
+        doc = tomllib.loads(raw.decode("utf-8"))
+    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
+        raise InputError(f"{path}: not valid TOML ({e})") from None
+    c = _Checker(path)
+    c.unknown(doc, SECTIONS, "")
+    tables = {s: c.table(doc, s) for s in SECTIONS}
+    t = tables["workflow"]
+    c.unknown(t, SECTIONS["workflow"], "workflow")
+    name = c.str_(t, "name", "[workflow]", required=True)
+    if not NAME.match(name):
+        c.fail("[workflow].name", f"{name!r} is not a valid name (letters, digits, . _ + -)")
+    base = path.resolve().parent
+    campaign = (base / c.str_(t, "campaign", "[workflow]", required=True)).resolve()
+    if not (campaign / "campaign.toml").is_file():
+        c.fail("[workflow].campaign", f"{campaign} is not a campaign folder (no campaign.toml)")
+    out = (base / c.str_(t, "output", "[workflow]", f"../out/{name}")).resolve()
+    rep = (base / c.str_(t, "report", "[workflow]", f"../reports/{name}")).resolve()
+    if out == campaign or campaign in out.parents:
+        c.fail("[workflow].output", f"{out} lies inside the campaign folder")
+    cfg = {"workflow": {"name": name, "description": c.str_(t, "description", "[workflow]", ""),
+                        "campaign": str(campaign), "seed": c.num(t, "seed", "[workflow]", 1,
+                                                                 integer=True, minimum=0),
+                        "output": str(out), "report": str(rep)},
+           "fit": _fit(c, tables["fit"])}
+    lt = tables["law"]
+    c.unknown(lt, SECTIONS["law"], "law")
+    cfg["law"] = {"enabled": c.bool_(lt, "enabled", "[law]", True),
+                  "family": c.str_(lt, "family", "[law]", "auto", FAMILIES)}
+    cfg["predict"] = _predict(c, tables["predict"])
+    cfg["compare"] = _compare(c, tables["compare"])
+    rt = tables["report"]
+    c.unknown(rt, SECTIONS["report"], "report")
+    cfg["report"] = {"enabled": c.bool_(rt, "enabled", "[report]", True),
+                     "title": c.str_(rt, "title", "[report]", f"frictionuq report: {name}"),
+                     "published": c.str_(rt, "published", "[report]", "none", PUBLISHED)}
+    return Workflow(path=path.resolve(), sha256=hashlib.sha256(raw).hexdigest(), config=cfg,
+                    campaign=campaign, out=out, report_dir=rep)
