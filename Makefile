@@ -1,6 +1,8 @@
 # frictionuq: the two commands of the README.
 #   make demo   create .venv, install frictionuq, run the main job on the shipped data
-#   make test   create .venv, install frictionuq with its test extra, run the test suite
+#               (workflows/quick.toml -> reports/quick/index.html)
+#   make test   create .venv, install frictionuq with its test extra and Debian's chromium (for
+#               the report's browser test; tools/install-chromium), run the test suite
 # A Python >= 3.12 is found by tools/find-python (PATH, then pyenv's versions); override with
 #   make demo PYTHON=/path/to/python3.12
 SHELL := /bin/bash
@@ -11,10 +13,10 @@ PYTHON_FOUND = $(shell tools/find-python)
 .PHONY: demo test install install-test bench bench-fit clean-venv
 
 demo: $(VENV)/.installed
-	$(VENV)/bin/frictionuq ingest data/brfd-arts-d2 --out out/brfd-arts-d2
-	$(VENV)/bin/frictionuq table out/brfd-arts-d2 --published brfd
+	$(VENV)/bin/frictionuq run workflows/quick.toml -j 2
 
 test: $(VENV)/.installed-test
+	@tools/install-chromium >/dev/null
 	$(PY) -m pytest
 
 bench: $(VENV)/.installed-test

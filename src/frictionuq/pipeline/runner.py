@@ -44,10 +44,16 @@ class RunResult:
 def plan_status(wf, targets=("all",), force: bool = False) -> list[tuple[str, bool, str]]:
     """[(task, runs?, why)] for the targets, in dependency order."""
     tasks = plan(wf)
-    rows = []
+    rows, runs = [], set()
     for n in closure(tasks, targets):
-        ok, why = cache.state(wf.out, tasks[n])
-        rows.append((n, force or not ok, "forced (--force)" if force and ok else why))
+        t = tasks[n]
+        ok, why = cache.state(wf.out, t)
+        upstream = [d for d in (t.deps if t.key_deps is None else t.key_deps) if d in runs]
+        if ok and upstream:         # make-like: what a rerun task feeds is rerun too
+            ok, why = False, f"dependency {upstream[0]} reruns"
+        if force or not ok:
+            runs.add(n)
+        rows.append((n, n in runs, "forced (--force)" if force and ok else why))
     return rows
 
 

@@ -1,0 +1,225 @@
+"""`frictionuq run`: the make-like pipeline on a tiny real workflow (two short ARTS d2 sines at
+36 lb and 0 lb, a few hundred sampler steps): first run, no-op rerun, only what depends on a
+changed test or setting reruns, a corrupted output is recomputed, a failed fit loses nothing else
+and is the only thing retried, a killed run resumes, and fits run on a Dask LocalCluster."""
+from __future__ import annotations
+
+import gzip
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from frictionuq.pipeline import plan, plan_status, run
+from frictionuq.pipeline import cache, tasks as T
+from frictionuq.workflow import load_workflow
+
+pytestmark = pytest.mark.slow
+ROOT = Path(__file__).resolve().parents[1]
+
+WF = """
+[workflow]
+name = "tiny"
+campaign = "campaign"
+seed = 3
+output = "out"
+
+[fit]
+tests = ["sine-2Hz-36lb-0.5in", "sine-2Hz-0lb-1in"]
+samples_per_cycle = 40
+
+[fit.sampler]
+max_steps = {steps}
+min_steps = 100
+burn_steps = 100
+burn_rounds = 1
+burn_max_rounds = 1
+n_random_starts = 1
+n_prior_starts = 1
+
+[predict]
+n_draws = 50
+
+[[predict.harmonic]]
+name = "h36"
+amplitude_m = 0.01
+frequency_hz = 2.0
+applied = 36
+
+[report]
+enabled = false
+"""
+
+
+def _workflow(folder: Path, steps: int = 200) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    camp = folder / "campaign"
+    if not camp.exists():
+        shutil.copytree(ROOT / "data" / "brfd-arts-d2", camp)
+    p = folder / "wf.toml"
+    p.write_text(WF.format(steps=steps))
+    return p
+
+
+@pytest.fixture(scope="module")
+def first_run(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("pipe")
+    wf = load_workflow(_workflow(folder))
+    res = run(wf, jobs=2)
+    return folder, wf, res
+
+
+def _stale(wf):
+    return {n for n, runs, _ in plan_status(wf) if runs}
+
+
+def test_first_run_then_noop(first_run):
+    folder, wf, res = first_run
+    assert res.ok, (res.failed, res.skipped)
+    assert set(res.ran) == set(plan(wf)), res.ran
+    for f in ("fit/summary.json", "fit/applied-36lb/posterior.nc", "advantage/advantage.csv",
+              "predict/h36/bands.csv", "run.json"):
+        assert (wf.out / f).is_file(), f
+    assert res.log_file.is_file() and "log of fit:applied-36lb" in res.log_file.read_text()
+    prov = json.loads((wf.out / "run.json").read_text())
+    assert prov["workflow"]["sha256"] == wf.sha256 and prov["seed"] == 3
+    assert {t["status"] for t in prov["tasks"]} == {"ran"}
+    t0 = time.perf_counter()
+    again = run(load_workflow(wf.path))
+    assert again.ran == [] and set(again.cached) == set(plan(wf))
+    assert time.perf_counter() - t0 < 20
+
+
+def test_changing_one_test_or_one_setting_reruns_only_its_dependents(first_run):
+    folder, wf, _ = first_run
+    # the 0 lb record re-compressed: same data, new bytes -> its level and what follows
+    rec = folder / "campaign" / "records" / "2Hz0lbtension1amplitude.json.gz"
+    data = gzip.decompress(rec.read_bytes())
+    saved = rec.read_bytes()
+    os.chmod(rec, 0o644)
+    rec.write_bytes(gzip.compress(data, mtime=12345))
+    try:
+        stale = _stale(load_workflow(wf.path))
+        assert stale == {"ingest", "fit:applied-0lb", "fit/summary", "predict:h36"}, stale
+    finally:
+        rec.write_bytes(saved)
+    assert _stale(load_workflow(wf.path)) == set()
+    # one setting of the predictions: only the predictions
+    text = wf.path.read_text()
+    wf.path.write_text(text.replace("n_draws = 50", "n_draws = 60"))
+    try:
+        assert _stale(load_workflow(wf.path)) == {"predict:h36"}
+    finally:
+        wf.path.write_text(text)
+    # the dry run prints the plan and runs nothing
+    wf.path.write_text(text.replace("n_draws = 50", "n_draws = 60"))
+    try:
+        r = subprocess.run([sys.executable, "-m", "frictionuq.cli", "run", str(wf.path), "--dry-run"],
+                           capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+        assert "run   predict:h36" in r.stdout and "skip  fit:applied-36lb" in r.stdout
+        assert "1 of" in r.stdout
+    finally:
+        wf.path.write_text(text)
+    assert _stale(load_workflow(wf.path)) == set()
+
+
+def test_corrupted_output_is_detected_and_recomputed(first_run):
+    folder, wf, _ = first_run
+    p = wf.out / "predict" / "h36" / "bands.csv"
+    good = p.read_bytes()
+    p.write_bytes(good[: len(good) // 2])
+    ok, why = cache.state(wf.out, plan(wf)["predict:h36"])
+    assert not ok and "changed since it was written" in why
+    res = run(load_workflow(wf.path), ["predict"])
+    assert res.ran == ["predict:h36"] and p.read_bytes() == good    # same seed, same numbers
+    # an unreadable manifest is a stale entry, not a crash
+    cache.manifest_path(wf.out, "predict:h36").write_text("{not json")
+    assert "unreadable" in cache.state(wf.out, plan(wf)["predict:h36"])[1]
+    run(load_workflow(wf.path), ["predict"])
+    assert _stale(load_workflow(wf.path)) == set()
+
+
+def test_a_failed_fit_loses_nothing_and_only_it_is_retried(first_run, monkeypatch):
+    folder, wf, _ = first_run
+    real = T.RUNNERS["fit"]
+
+    def flaky(wf_, task, log):
+        if task.args["fit_id"] == "applied-0lb":
+            raise ValueError("simulated failure of the 0 lb fit")
+        return real(wf_, task, log)
+    monkeypatch.setitem(T.RUNNERS, "fit", flaky)
+    wf = load_workflow(wf.path)
+    res = run(wf, ["fit", "predict"], force=True)          # inline (-j 1): the patch applies
+    assert set(res.failed) == {"fit:applied-0lb"}
+    assert "simulated failure" in res.failed["fit:applied-0lb"]
+    assert set(res.skipped) == {"fit/summary", "predict:h36"}
+    assert "fit:applied-36lb" in res.ran and not res.ok
+    monkeypatch.setitem(T.RUNNERS, "fit", real)
+    retry = run(load_workflow(wf.path))
+    assert set(retry.ran) == {"fit:applied-0lb", "fit/summary", "predict:h36"}, retry.ran
+    assert "fit:applied-36lb" in retry.cached and retry.ok
+
+
+def test_cli_run_status_clean(first_run):
+    folder, wf, _ = first_run
+    cli = [sys.executable, "-m", "frictionuq.cli"]
+    r = subprocess.run(cli + ["run", str(wf.path)], capture_output=True, text=True)
+    assert r.returncode == 0 and "nothing to do" in r.stdout, r.stdout + r.stderr
+    r = subprocess.run(cli + ["status", str(wf.path)], capture_output=True, text=True)
+    assert r.returncode == 0 and "0 stale" in r.stdout
+    other = folder / "copy"
+    shutil.copytree(wf.out, other)
+    r = subprocess.run(cli + ["clean", str(wf.path)], capture_output=True, text=True)
+    assert r.returncode == 0 and not wf.out.exists()
+    shutil.move(other, wf.out)                   # put the run back for the other tests
+    assert _stale(load_workflow(wf.path)) == set()
+
+
+def test_killed_run_resumes_its_fit(tmp_path):
+    """SIGKILL the whole run while a fit samples: finished tasks keep their cache entries, and
+    the next run resumes the fit from its HDF5 chain instead of starting again."""
+    p = _workflow(tmp_path, steps=3000)
+    wf = load_workflow(p)
+    proc = subprocess.Popen([sys.executable, "-m", "frictionuq.cli", "run", str(p), "fit:applied-36lb"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    log = T.task_log_path(wf.out, "fit:applied-36lb")
+    deadline = time.time() + 240
+    while time.time() < deadline:
+        if log.is_file() and "step 500" in log.read_text():
+            break
+        time.sleep(0.5)
+    else:
+        os.killpg(proc.pid, signal.SIGKILL)
+        pytest.fail("the fit did not reach step 500 in time")
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert cache.state(wf.out, plan(wf)["ingest"])[0]            # the finished task is intact
+    assert not cache.state(wf.out, plan(wf)["fit:applied-36lb"])[0]
+    assert (wf.out / "fit" / "applied-36lb" / "chain.h5").is_file()
+    p.write_text(WF.format(steps=3000))                           # same key
+    res = run(load_workflow(p), ["fit:applied-36lb"])
+    assert res.ran == ["fit:applied-36lb"]
+    text = log.read_text()
+    assert "resuming in" in text and "resuming from stored step" in text, text[:2000]
+
+
+def test_fits_on_a_dask_localcluster(first_run):
+    import logging
+    from dask.distributed import LocalCluster
+    folder, wf, _ = first_run
+    before = json.loads((wf.out / "fit" / "summary.json").read_text())
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                      silence_logs=logging.ERROR) as cluster:
+        res = run(load_workflow(wf.path), ["fit"], scheduler=cluster.scheduler_address, force=True)
+    assert res.ok and {"fit:applied-36lb", "fit:applied-0lb"} <= set(res.ran)
+    after = json.loads((wf.out / "fit" / "summary.json").read_text())
+    # reproducible: the same seed gives the same posterior on the cluster as locally
+    for a, b in zip(before["fits"], after["fits"]):
+        assert a["parameters"]["fc_fwd"]["mean"] == b["parameters"]["fc_fwd"]["mean"]

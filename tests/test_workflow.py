@@ -1,0 +1,127 @@
+"""Workflow files: the shipped ones load and plan; unknown keys and bad values are refused with
+the file, the key and the problem (exit code 2 in the CLI, one line, no traceback)."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from frictionuq.errors import InputError
+from frictionuq.pipeline import plan
+from frictionuq.workflow import load_workflow
+
+ROOT = Path(__file__).resolve().parents[1]
+SHIPPED = sorted((ROOT / "workflows").glob("*.toml"))
+
+BASE = """
+[workflow]
+name = "t"
+campaign = "{campaign}"
+
+[fit]
+tests = ["sine-2Hz-36lb-0.5in"]
+"""
+
+
+def _write(tmp_path, extra: str = "", base: str = BASE) -> Path:
+    p = tmp_path / "wf.toml"
+    p.write_text(base.format(campaign=ROOT / "data" / "brfd-arts-d2") + extra)
+    return p
+
+
+def test_the_shipped_workflows_load_and_plan():
+    names = {p.stem for p in SHIPPED}
+    assert {"quick", "brfd-arts", "brfd-twin", "mfd-twin"} <= names
+    for p in SHIPPED:
+        wf = load_workflow(p)
+        assert wf.name == p.stem
+        tasks = plan(wf)
+        assert "ingest" in tasks and "fit/summary" in tasks and "report" in tasks
+        assert any(t.stage == "fit" and t.heavy for t in tasks.values())
+        assert wf.out.name == wf.name and wf.report_dir.name == wf.name
+
+
+def test_defaults_are_filled_in(tmp_path):
+    wf = load_workflow(_write(tmp_path))
+    c = wf.config
+    assert c["fit"]["by"] == "applied" and c["fit"]["likelihood"] == "ar1"
+    assert c["compare"]["enabled"] is False and c["report"]["published"] == "none"
+    assert wf.out == (tmp_path / ".." / "out" / "t").resolve()
+    fc = wf.fit_config()
+    assert fc.tests == ("sine-2Hz-36lb-0.5in",) and fc.sampler.progress is False
+
+
+@pytest.mark.parametrize("extra, where, problem", [
+    ("\n[fitt]\nby = 'test'\n", "fitt", "unknown key"),
+    ("\n[fit.sampler]\nmax_step = 10\n", "[fit.sampler].max_step", "unknown key"),
+    ("\n[fit.sampler]\nmax_steps = -10\n", "[fit.sampler].max_steps", "must be > 0"),
+    ("\n[fit.sampler]\nmax_steps = 2.5\n", "[fit.sampler].max_steps", "integer"),
+    ("\n[fit.sampler]\nmax_steps = 100\nmin_steps = 500\n", "[fit.sampler].min_steps", "exceeds"),
+    ("\n[law]\nfamily = 'cubic'\n", "[law].family", "must be one of"),
+    ("\n[report]\npublished = 'xyz'\n", "[report].published", "must be one of"),
+    ("\n[predict]\nn_draws = 'many'\n", "[predict].n_draws", "integer"),
+    ("\n[[predict.harmonic]]\namplitude_m = 0.01\napplied = 36\n", "frequency_hz", "missing"),
+    ("\n[[predict.harmonic]]\namplitude_m = 0.01\nfrequency_hz = 1\napplied = 36\nphase = 0\n",
+     "phase", "unknown key"),
+    ("\n[[predict.ground_motion]]\nrecord = 'northridge'\npeak_m = 0.01\napplied = 36\n",
+     "record", "must be one of"),
+    ("\n[compare]\nmodels = ['lugre']\n", "[compare].models", "two models"),
+    ("\n[compare]\nenabled = 'yes'\n", "[compare].enabled", "true or false"),
+])
+def test_bad_keys_and_values_name_file_key_and_problem(tmp_path, extra, where, problem):
+    p = _write(tmp_path, extra)
+    with pytest.raises(InputError) as e:
+        load_workflow(p)
+    msg = str(e.value)
+    assert str(p) in msg and where in msg and problem in msg, msg
+
+
+def test_bad_fit_section_values(tmp_path):
+    base = BASE.replace('tests = ["sine-2Hz-36lb-0.5in"]', "")
+    for fit, where in [("model = 'coulomb'", "[fit].model"), ("likelihood = 'ar2'", "[fit].likelihood"),
+                       ("effects = ['wobble']", "[fit].effects"), ("eps = -1.0", "[fit].eps"),
+                       ("kinds = ['sine']", "[fit].kinds"), ("bogus = 1", "fit.bogus")]:
+        p = _write(tmp_path, "", base.replace("[fit]", "[fit]\n" + fit))
+        with pytest.raises(InputError, match=None) as e:
+            load_workflow(p)
+        assert where in str(e.value) and str(p) in str(e.value), str(e.value)
+    p = _write(tmp_path, "\n[fit.priors]\nfc_sideways = 1.0\n")
+    with pytest.raises(InputError, match="fc_sideways"):
+        load_workflow(p)
+    p = _write(tmp_path, "\n[fit.priors]\nnoise_phi = {dist = 'uniform', lower = 0, upper = 0.5}\n")
+    with pytest.raises(InputError, match="noise_phi"):
+        load_workflow(p)
+
+
+def test_missing_required_and_unknown_tests(tmp_path):
+    p = tmp_path / "wf.toml"
+    p.write_text("[workflow]\nname = 't'\n")
+    with pytest.raises(InputError, match=r"\[workflow\]\.campaign: missing"):
+        load_workflow(p)
+    p.write_text("[workflow]\nname = 't'\ncampaign = 'nowhere'\n")
+    with pytest.raises(InputError, match="not a campaign folder"):
+        load_workflow(p)
+    p.write_text("[workflow\nname = 't'\n")
+    with pytest.raises(InputError, match="not valid TOML"):
+        load_workflow(p)
+    with pytest.raises(InputError, match="not found"):
+        load_workflow(tmp_path / "absent.toml")
+    # a test id the campaign does not have: refused when the tasks are planned
+    wf = load_workflow(_write(tmp_path, "\n[predict]\nvalidate = ['eq-northridge']\n"))
+    with pytest.raises(InputError, match=r"\[predict\] validate.*eq-northridge"):
+        plan(wf)
+
+
+def test_cli_bad_workflow_is_one_line_exit_2(tmp_path):
+    p = _write(tmp_path, "\n[law]\nfamily = 'cubic'\n")
+    for cmd in (["run", str(p)], ["status", str(p)], ["run", str(p), "--dry-run"]):
+        r = subprocess.run([sys.executable, "-m", "frictionuq.cli", *cmd], capture_output=True, text=True)
+        assert r.returncode == 2, r.stderr
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and "[law].family" in lines[0] and "Traceback" not in r.stderr
+    good = _write(tmp_path)
+    r = subprocess.run([sys.executable, "-m", "frictionuq.cli", "run", str(good), "fitt"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and "unknown target 'fitt'" in r.stderr
