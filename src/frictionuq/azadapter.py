@@ -94,3 +94,15 @@ def rank_plot(dt, var_names, path, max_chains: int = 8):
 
 def trace_plot(dt, var_names, path, max_chains: int = 8):
     return _plot_few_chains("plot_trace", dt, var_names, path, max_chains)
+
+
+def rank_figure(dt, var_names, max_chains: int = 8):
+    """The rank plot of `rank_plot` as a matplotlib Figure with a legend of the chains, for a
+    caller that titles, sizes, saves and closes it itself (frictionuq.report)."""
+    import arviz_plots as azp
+    import matplotlib
+    matplotlib.use("Agg")
+    sub = dt.sel(chain=slice(0, max_chains - 1))
+    pc = azp.plot_rank(sub, var_names=var_names, backend="matplotlib")
+    pc.add_legend("chain")
+    return pc.get_viz("figure")

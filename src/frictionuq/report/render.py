@@ -1,0 +1,65 @@
+"""Assembly of the report: the sections' blocks rendered by the jinja2 template into one
+self-contained HTML file (inline CSS, images as base64 PNG data URIs, no script, no external
+URL), written atomically."""
+from __future__ import annotations
+
+import datetime as _dt
+from pathlib import Path
+
+from .. import __version__, atomic
+from ..errors import InputError
+from .context import Context, section_of
+from .sections import SECTIONS, build_sections
+
+TEMPLATE = "report.html"
+
+
+def _env():
+    import jinja2
+    return jinja2.Environment(loader=jinja2.PackageLoader("frictionuq.report", "templates"),
+                              autoescape=jinja2.select_autoescape(["html"]),
+                              undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True)
+
+
+def alerts(ctx) -> list[str]:
+    """Run-level warnings shown under the title."""
+    out = []
+    fits = ctx.fits()
+    bad = [f["id"] for f in fits if not f.get("converged")]
+    if bad:
+        out.append(f"{len(bad)} of {len(fits)} fits did NOT converge ({', '.join(bad)}): their "
+                   "intervals and everything derived from them are not reliable.")
+    failed = [t.get("name", "?") for t in ctx.provenance.get("tasks") or []
+              if isinstance(t, dict) and t.get("error")]
+    if failed:
+        out.append(f"Tasks that failed: {', '.join(map(str, failed))} (see Provenance).")
+    return out
+
+
+def render_html(ctx: Context, generated: str | None = None) -> str:
+    """The report of the run behind `ctx` as an HTML string."""
+    generated = generated or _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+    sections = build_sections(ctx, generated)
+    desc = section_of(ctx.workflow, "workflow").get("description") or ""
+    return _env().get_template(TEMPLATE).render(
+        title=ctx.title(), description=desc, run_dir=str(ctx.run_dir), generated=generated,
+        version=__version__, sections=sections, alerts=alerts(ctx))
+
+
+def render_report(run_dir, out_html, *, workflow: dict, provenance: dict) -> Path:
+    """Build the HTML report of the workflow run folder `run_dir` and write it to `out_html`
+    (atomically: on any error no file, and an existing report is left as it was).
+
+    workflow: the parsed workflow TOML ([workflow], [fit], [predict], [compare], [report]
+    title/published; missing keys take defaults). provenance: the run record (format of
+    run.json: package_version, workflow {name, file, sha256, config}, seed, started, finished,
+    inputs, tasks). Returns the path written."""
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise InputError(f"{run_dir}: no such workflow run folder")
+    ctx = Context(run_dir, workflow or {}, provenance or {})
+    html = render_html(ctx)
+    return atomic.write_text(Path(out_html), html)
+
+
+__all__ = ["render_report", "render_html", "SECTIONS"]

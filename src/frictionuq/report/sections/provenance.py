@@ -1,0 +1,66 @@
+"""Section "provenance": package version, workflow file and hash, configuration, seeds, input
+hashes, per-task run times and status (the `provenance` dict, format of run.json) and the
+report's generation time."""
+from __future__ import annotations
+
+import json
+
+from ... import __version__
+from .. import blocks as B
+from ..context import section_of
+from ..tables import DASH, badge, kv_table, num, table
+
+OK_STATUS = ("ran", "cached", "ok", "done", "skipped", "up-to-date")
+
+
+def _seeds(ctx) -> str:
+    seeds = []
+    if ctx.provenance.get("seed") is not None:
+        seeds.append(f"run: {ctx.provenance['seed']}")
+    wf_seed = section_of(ctx.workflow, "workflow").get("seed")
+    if wf_seed is not None:
+        seeds.append(f"workflow: {wf_seed}")
+    cfg = section_of(ctx.summary() or {}, "config")
+    if cfg.get("seed") is not None:
+        seeds.append(f"fits: {cfg['seed']}")
+    return "; ".join(seeds) or "not recorded"
+
+
+def build(ctx, generated: str) -> list[dict]:
+    prov, wf = ctx.provenance, section_of(ctx.provenance, "workflow")
+    info = [("frictionuq version of the run", prov.get("package_version", "not recorded")),
+            ("frictionuq version of this report", __version__),
+            ("workflow", wf.get("name") or section_of(ctx.workflow, "workflow").get("name") or "not recorded"),
+            ("workflow file", wf.get("file", "not recorded")),
+            ("workflow file sha256", wf.get("sha256", "not recorded")),
+            ("seeds", _seeds(ctx)),
+            ("run started", prov.get("started", "not recorded")),
+            ("run finished", prov.get("finished", "not recorded")),
+            ("run folder", str(ctx.run_dir)),
+            ("report generated", generated)]
+    out = [B.html(kv_table(info, caption="run"))]
+    inputs = [i for i in prov.get("inputs") or [] if isinstance(i, dict)]
+    if inputs:
+        out.append(B.html(table(["input file", "sha256"], [[i.get("path", DASH), i.get("sha256", DASH)]
+                                                          for i in inputs], caption="inputs")))
+    else:
+        out.append(B.note("No input hashes recorded."))
+    tasks = [t for t in prov.get("tasks") or [] if isinstance(t, dict)]
+    if tasks:
+        rows, classes = [], []
+        for t in tasks:
+            status = str(t.get("status", DASH))
+            ok = status.lower() in OK_STATUS and not t.get("error")
+            rows.append([t.get("name", DASH), t.get("stage", DASH), badge(status, ok),
+                         num(t.get("seconds"), 3), t.get("key") or DASH, t.get("error") or ""])
+            classes.append("" if ok else "flagged")
+        total = sum(float(t.get("seconds") or 0) for t in tasks)
+        out.append(B.html(table(["task", "stage", "status", "run time (s)", "cache key", "error"],
+                                rows, row_classes=classes,
+                                caption=f"tasks (total run time {num(total, 4)} s)")))
+    else:
+        out.append(B.note("No task record."))
+    config = wf.get("config") if isinstance(wf.get("config"), dict) else ctx.workflow
+    out.append(B.heading("Workflow configuration"))
+    out.append(B.pre(json.dumps(config or {}, indent=2, sort_keys=False, default=str)))
+    return out

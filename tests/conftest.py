@@ -1,0 +1,134 @@
+"""Shared fixtures: a small but complete workflow run folder built with the library (ingest, fit,
+mechanical advantage, validation, a harmonic prediction, model comparison) and its rendered
+HTML report, built once per session for tests/test_report.py and tests/test_report_browser.py.
+
+The run: 3 tests of data/brfd-arts-d2 (the two 2 Hz sines, fitted per applied force: 36 lb and
+0 lb; the 1 Hz / 36 lb sine held out for validation), with the smallest sampler settings that
+still run: the fits are NOT converged, which the report must say. About 20-30 s on 2 cores.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+ARTS = REPO / "data" / "brfd-arts-d2"
+FIT_TESTS = ("sine-2Hz-36lb-0.5in", "sine-2Hz-0lb-1in")
+HELD_OUT = "sine-1Hz-36lb-1in"
+PREDICTION = "harmonic-25mm-2Hz-36lb"
+
+WORKFLOW = {
+    "workflow": {"name": "tiny-report", "description": "Report test run: 2 short BRFD tests, tiny sampler",
+                 "campaign": str(ARTS), "seed": 1},
+    "fit": {"by": "applied", "model": "three_stage", "tests": list(FIT_TESTS)},
+    "predict": {"validate": [HELD_OUT]},
+    "compare": {"models": ["three_stage", "lugre"]},
+    "report": {"title": "Tiny report test", "published": "brfd"},
+}
+
+
+def provenance(run_dir) -> dict:
+    return {"package_version": "0.1.0",
+            "workflow": {"name": "tiny-report", "file": str(REPO / "workflows" / "tiny.toml"),
+                         "sha256": "f" * 64, "config": WORKFLOW},
+            "seed": 1, "started": "2026-01-01T00:00:00+00:00", "finished": "2026-01-01T00:01:00+00:00",
+            "inputs": [{"path": "data/brfd-arts-d2/campaign.toml", "sha256": "a" * 64}],
+            "tasks": [{"name": "ingest", "stage": "ingest", "status": "ran", "seconds": 0.5, "key": "k1",
+                       "error": None},
+                      {"name": "fit", "stage": "fit", "status": "cached", "seconds": 0.0, "key": "k2",
+                       "error": None}]}
+
+
+def tiny_campaign(dest: Path, keep) -> Path:
+    """A campaign folder with only the tests `keep` of data/brfd-arts-d2 (records symlinked)."""
+    dest.mkdir(parents=True)
+    (dest / "records").symlink_to(ARTS / "records")
+    head, *blocks = (ARTS / "campaign.toml").read_text().split("[[tests]]")
+    blocks = [b for b in blocks if any(f'id = "{k}"' in b for k in keep)]
+    assert len(blocks) == len(keep), "data/brfd-arts-d2 lost a test the report fixture needs"
+    (dest / "campaign.toml").write_text(head + "".join("[[tests]]" + b for b in blocks))
+    return dest
+
+
+def build_run(root: Path, compare: bool = True) -> Path:
+    from frictionuq.advantage import write_advantage
+    from frictionuq.infer.compare import compare_campaign
+    from frictionuq.infer.fit import FitConfig, fit_campaign
+    from frictionuq.infer.sampler import SamplerConfig
+    from frictionuq.ingest import ingest
+    from frictionuq.predict import write_prediction
+    from frictionuq.validate import validate
+    camp = tiny_campaign(root / "campaign", FIT_TESTS + (HELD_OUT,))
+    run = root / "run"
+    ingest(camp, run / "ingest")
+    sc = SamplerConfig(max_steps=300, min_steps=200, burn_steps=100, burn_rounds=1, burn_max_rounds=1,
+                       n_random_starts=1, n_prior_starts=1, progress=False)
+    cfg = FitConfig(tests=FIT_TESTS, samples_per_cycle=60, sampler=sc, n_predictive=50)
+    fit_campaign(run / "ingest", run / "fit", config=cfg, resume=False)
+    write_advantage(run / "fit", run / "advantage")
+    validate(run / "fit", run / "ingest", [HELD_OUT], run / "predict" / "validation", n_draws=40)
+    write_prediction(run / "fit", run / "predict" / PREDICTION, harmonic=(0.025, 2.0), applied=36, n_draws=40)
+    if compare:
+        cfgs = {m: FitConfig(model=m, samples_per_cycle=60, sampler=sc, n_predictive=50)
+                for m in ("three_stage", "lugre")}
+        compare_campaign(run / "ingest", run / "compare", cfgs, tests=FIT_TESTS,
+                         work_dir=root / "compare-chains")
+    return run
+
+
+class FigureSpy:
+    """Records, for every figure the report saves, its title, axis labels and legends."""
+
+    def __init__(self):
+        self.figures = []
+
+    def wrap(self, png):
+        def spy(fig, *a, **kw):
+            titles = [fig.get_suptitle()] if fig.get_suptitle() else []
+            axes = [{"title": ax.get_title(), "xlabel": ax.get_xlabel(), "ylabel": ax.get_ylabel(),
+                     "has_data": bool(ax.lines or ax.collections or ax.patches), "visible": ax.axison,
+                     "legend": ax.get_legend() is not None} for ax in fig.axes]
+            self.figures.append({"titles": titles, "axes": axes, "fig_legend": bool(fig.legends)})
+            return png(fig, *a, **kw)
+        return spy
+
+
+@pytest.fixture(scope="session")
+def report_run(tmp_path_factory):
+    """{"run_dir", "workflow", "provenance"} of the shared run folder."""
+    root = tmp_path_factory.mktemp("report-run")
+    run = build_run(root)
+    return {"run_dir": run, "workflow": WORKFLOW, "provenance": provenance(run), "root": root}
+
+
+@pytest.fixture(scope="session")
+def rendered_report(report_run, tmp_path_factory):
+    """The run's report rendered once: {"path", "html", "seconds", "figures"} (figures: what
+    FigureSpy saw)."""
+    import time
+    from unittest import mock
+    from frictionuq.report import figures, figures_fit, figures_levels, render_report
+    spy = FigureSpy()
+    wrapped = spy.wrap(figures.png)
+    out = tmp_path_factory.mktemp("report-html") / "tiny.html"
+    t0 = time.perf_counter()
+    with mock.patch.object(figures, "png", wrapped), mock.patch.object(figures_fit, "png", wrapped), \
+            mock.patch.object(figures_levels, "png", wrapped):
+        path = render_report(report_run["run_dir"], out, workflow=report_run["workflow"],
+                             provenance=report_run["provenance"])
+    return {"path": path, "html": path.read_text(encoding="utf-8"),
+            "seconds": time.perf_counter() - t0, "figures": spy.figures}
+
+
+@pytest.fixture
+def partial_run(report_run, tmp_path):
+    """partial_run(*names): a run folder holding only those sub-folders of the shared run
+    (symlinked), e.g. partial_run("ingest", "fit") for a workflow without the optional stages."""
+    def make(*keep) -> Path:
+        dest = tmp_path / ("run-" + "-".join(keep or ("empty",)))
+        dest.mkdir()
+        for name in keep:
+            (dest / name).symlink_to(report_run["run_dir"] / name, target_is_directory=True)
+        return dest
+    return make
