@@ -80,8 +80,10 @@ class _Display:
     def status(self, text: str) -> None:
         if not self.tty:
             return
-        width = max(40, os.get_terminal_size(self.stream.fileno()).columns - 1) \
-            if hasattr(self.stream, "fileno") else 100
+        try:
+            width = max(40, os.get_terminal_size(self.stream.fileno()).columns - 1)
+        except (OSError, ValueError, AttributeError):
+            width = 100
         self.stream.write("\r\033[K" + text[:width])
         self.stream.flush()
         self.live = True
