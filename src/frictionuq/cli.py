@@ -119,6 +119,26 @@ def _cmd_compare(a):
         return 1
 
 
+def _cmd_discover(a):
+    from .discrepancy.discover import discover
+    from .infer.fit import FitConfig
+    from .infer.sampler import SamplerConfig
+    samp = SamplerConfig(**({"max_steps": a.max_steps} if a.max_steps else {}))
+    cfg = FitConfig(likelihood=a.likelihood, sampler=samp, tests=tuple(a.test) if a.test else None,
+                    kinds=tuple(a.kind) if a.kind else None)
+    d = discover(a.campaign, a.out, cfg, seed=a.seed, refit=not a.no_refit,
+                 log=lambda m: print(m, file=sys.stderr))
+    print(f"{'candidate':<20}{'ELPD gain (nats)':>18}{'SE':>10}{'RMSE after (N)':>16}")
+    for c in d["candidates"]:
+        print(f"{c['effect']:<20}{c['elpd_gain']:18.1f}{c['elpd_gain_se']:10.1f}{c['rmse_after']:16.4g}")
+    print(f"named effect: {d['named_effect']} ({d['reason']})")
+    print(f"RMSE before {d['rmse_before']:.4g} N, after {d['rmse_after']:.4g} N"
+          + (f", noise scale {d['noise_scale']:.4g} N" if d["noise_scale"] else ""))
+    for n, st in d["effect_parameters"].items():
+        print(f"  {n} = {st['mean']:.4g} {st['unit']} [{st['q2.5']:.4g}, {st['q97.5']:.4g}]")
+    print(f"wrote {a.out}/discrepancy.json")
+
+
 def _cmd_run(a):
     from .pipeline import plan_status, run
     from .workflow import load_workflow
@@ -268,6 +288,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="held-out test's load-cell offset: integrated out (default) or the training fit's")
     _add_selection(s, "cap on stored sampler steps per fit")
     s.set_defaults(func=_cmd_compare)
+
+    s = sub.add_parser("discover", help="name the effect the model misses (screen the effect library, refit)")
+    s.add_argument("campaign", help="campaign folder or ingested folder")
+    s.add_argument("--out", required=True, help="output folder: discrepancy.json, refit/")
+    s.add_argument("--likelihood", choices=["iid", "ar1"], default="ar1")
+    s.add_argument("--no-refit", action="store_true", help="screen and name only (no MCMC refit)")
+    _add_selection(s, "cap on stored sampler steps of the refit")
+    s.set_defaults(func=_cmd_discover)
 
     s = sub.add_parser("run", help="run a workflow (make-like: only what is out of date)")
     s.add_argument("workflow", metavar="WORKFLOW", help="workflow file (TOML, e.g. workflows/quick.toml)")

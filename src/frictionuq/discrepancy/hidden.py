@@ -1,0 +1,97 @@
+"""Campaigns with one hidden effect (or none), for testing the discrepancy workflow.
+
+A campaign of three tests at one applied force of a paper device (BRFD or MFD, published
+parameters): two harmonics and one ground-motion replay, about 5,000 samples each at 100 Hz, with
+one effect of the library switched on at parameters drawn at random within realistic ranges, and
+AR(1) force noise. The generator's answer (effect, parameters, noise scale) is returned separately
+and written to a file OUTSIDE the campaign folder, so the workflow never sees it.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .. import atomic, published as pub
+from ..model import simulate
+from ..noise import ar1_from_normals
+from ..twins import earthquake_drive, harmonic_drive
+
+LEVEL = {"brfd": 133.0, "mfd": 1200.0}          # applied force (N) / pressure (psi)
+NOISE_PHI = 0.9
+NOISE_REL_SD = 0.01                             # marginal sd, fraction of Fc
+
+
+def draw_effect(effect: str | None, rng, amp: float, v_max: float, energy: float) -> dict:
+    """Effect parameters within realistic ranges (scaled to the drive where they are lengths)."""
+    u = rng.uniform
+    table = {
+        None: {},
+        "stage2_nonlinear": {"p2": float(u(1.8, 3.0))},
+        "thermal_fade": {"kappa": float(u(0.15, 0.3)), "e_fade": float(u(0.2, 0.5) * energy)},
+        "reversal_hump": {"a_hump": float(u(0.3, 0.6)), "l_hump": float(u(0.06, 0.15) * amp)},
+        "eccentricity": {"eps_ecc": float(u(0.12, 0.25)), "l_ecc": float(u(0.4, 0.8) * amp),
+                         "psi_ecc": float(u(-3.0, 3.0))},
+        "rate_strengthening": {"beta_rate": float(u(0.2, 0.4)), "v_ref": float(u(0.05, 0.2) * v_max)},
+        "applied_tracking": {"beta_app": float(u(0.6, 1.0))},
+    }
+    return table[effect]
+
+
+def hidden_campaign(out_dir, device: str, effect: str | None, seed: int,
+                    answer_path=None, short: bool = False) -> dict:
+    """Write a 3-test campaign with `effect` hidden (None: no effect) to out_dir; returns the
+    answer {effect, parameters, noise_sd_N, ...} (also written to answer_path if given).
+    short: 4 cycles per harmonic and the first 20 s of the ground motion (for CI)."""
+    out = Path(out_dir)
+    rng = np.random.default_rng([seed, 4242])
+    level = LEVEL[device]
+    if device == "brfd":
+        p = pub.published_params("brfd", level)
+        amp, freqs, unit_applied = pub.BRFD_AMPLITUDE_M, (0.2, 0.5), "N"
+        a_si = level
+    else:
+        p = pub.published_params("mfd", level * 6894.757293168)
+        amp, freqs, unit_applied = pub.MFD_AMPLITUDE_M, (0.1, 0.5), "psi"
+        a_si = level * 6894.757293168
+    drives = []
+    for f in freqs:
+        t, x = harmonic_drive(f, amp, cycles=4 if short else max(4, int(round(50 * f))))
+        drives.append((f"h-{f:g}Hz", "harmonic", f, t, x))
+    t, x = earthquake_drive("kobe", 0.5 * amp)
+    if short:
+        t, x = t[t < 20.0], x[t < 20.0]
+    drives.append(("eq-kobe", "earthquake", None, t, x))
+    v_max = max(float(np.max(np.abs(np.gradient(x, t)))) for _, _, _, t, x in drives)
+    fc = 0.5 * (p["fc_fwd"] + p["fc_bwd"])
+    e_ref = 4 * fc * amp * 10                   # energy of ~10 harmonic cycles (J)
+    eff_p = draw_effect(effect, rng, amp, v_max, e_ref)
+    effects = {effect: eff_p} if effect else None
+    sd = NOISE_REL_SD * fc
+    tests, toml = [], []
+    (out / "tests").mkdir(parents=True, exist_ok=True)
+    for tid, kind, f, t, x in drives:
+        n = t.size
+        applied_sig = a_si * (1 + 0.08 * np.sin(2 * np.pi * 0.37 * t + rng.uniform(0, 6.28))
+                              + 0.02 * rng.standard_normal(n))
+        F = simulate(t, x, p, effects=effects, eps=0.0,
+                     applied=applied_sig if effect == "applied_tracking" else None)
+        y = F + ar1_from_normals(rng.standard_normal(n), NOISE_PHI, sd)
+        a_out = applied_sig if unit_applied == "N" else applied_sig / 6894.757293168
+        body = "time,displacement,force,applied\n" + "".join(
+            f"{a:.6f},{b:.9g},{c:.6f},{d:.6f}\n" for a, b, c, d in zip(t, x, y, a_out))
+        atomic.write_text(out / "tests" / f"{tid}.csv", body)
+        tests.append({"id": tid, "samples": n})
+        toml.append(f'[[tests]]\nid = "{tid}"\nfile = "tests/{tid}.csv"\napplied = {level:g}\n'
+                    f'kind = "{kind}"\n' + (f"frequency_hz = {f:g}\n" if f else ""))
+    head = (f'name = "hidden-{device}-{seed}"\ndevice = "{device.upper()} '
+            f'paper twin with a hidden effect"\n[units]\ntime = "s"\ndisplacement = "m"\n'
+            f'force = "N"\napplied = "{unit_applied}"\n\n')
+    atomic.write_text(out / "campaign.toml", head + "\n".join(toml))
+    answer = {"device": device, "effect": effect or "none", "parameters": eff_p, "seed": seed,
+              "noise_sd_N": sd, "noise_phi": NOISE_PHI, "applied": level,
+              "applied_unit": unit_applied, "tests": tests}
+    if answer_path is not None:
+        atomic.write_json(answer_path, answer)
+    return answer
