@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 
-import pytest
 
 from frictionuq.campaign import load_campaign
 from frictionuq.discrepancy import screen

@@ -8,7 +8,6 @@ and written to a file OUTSIDE the campaign folder, so the workflow never sees it
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np

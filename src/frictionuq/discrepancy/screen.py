@@ -39,7 +39,7 @@ from dataclasses import replace
 import numpy as np
 
 from .. import params as P
-from ..campaign import Record, Test
+from ..campaign import Record
 from ..infer.compare import elpd_total, heldout_loglik
 from ..infer.fit import FitConfig, FitSpec, prepare
 from ..infer.likelihood import LogPosterior, records_from_tests
