@@ -6,6 +6,8 @@ from __future__ import annotations
 import json
 
 
+import pytest
+
 from frictionuq.campaign import load_campaign
 from frictionuq.discrepancy import screen
 from frictionuq.discrepancy.hidden import hidden_campaign
@@ -57,3 +59,24 @@ def test_hidden_campaign_keeps_its_answer_out(tmp_path):
         (tmp_path / "d" / "tests" / "h-0.2Hz.csv").read_bytes()
     mfd = hidden_campaign(tmp_path / "m", "mfd", None, seed=1, short=True)
     assert mfd["effect"] == "none" and load_campaign(tmp_path / "m").applied_si_unit == "Pa"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("device, effect, seed", [("brfd", "reversal_hump", 7), ("brfd", None, 7)])
+def test_discover_names_the_hidden_effect_or_none(tmp_path, device, effect, seed):
+    """A short 3-test campaign (two harmonics, a Kobe replay) with one hidden effect at random
+    realistic parameters, or none: the screening names it, or says none. Fixed seeds; the
+    false-alarm guard is the decision rule (every held-out test must gain > 5 nats); the larger
+    set (every effect, both devices, refits) is benchmarks/bench_discover.py."""
+    from frictionuq.discrepancy.discover import discover
+    from frictionuq.infer.fit import FitConfig
+    ans = hidden_campaign(tmp_path / "c", device, effect, seed=seed, short=True)
+    d = discover(tmp_path / "c", tmp_path / "out", FitConfig(samples_per_cycle=100), seed=1,
+                 refit=False)
+    assert d["named_effect"] == ans["effect"], (d["reason"], d["candidates"])
+    doc = json.loads((tmp_path / "out" / "discrepancy.json").read_text())
+    assert doc["named_effect"] == ans["effect"] and doc["package_version"]
+    assert {c["effect"] for c in doc["candidates"]} >= {"reversal_hump", "eccentricity", "thermal_fade",
+                                                        "rate_strengthening", "stage2_nonlinear"}
+    if effect:
+        assert doc["rmse_after"] < doc["rmse_before"]

@@ -69,6 +69,8 @@ def test_defaults_are_filled_in(tmp_path):
      "record", "must be one of"),
     ("\n[compare]\nmodels = ['lugre']\n", "[compare].models", "two models"),
     ("\n[compare]\nenabled = 'yes'\n", "[compare].enabled", "true or false"),
+    ("\n[discrepancy]\nenabled = 1\n", "[discrepancy].enabled", "true or false"),
+    ("\n[discrepancy]\ncandidates = []\n", "discrepancy.candidates", "unknown key"),
 ])
 def test_bad_keys_and_values_name_file_key_and_problem(tmp_path, extra, where, problem):
     p = _write(tmp_path, extra)

@@ -3,7 +3,7 @@
     ingest -> fit:<level> (one per applied force or test) -> fit/summary (summary.json, the
     force-dependence law, mechanical advantage) -> predict:<name> (validation of measured tests,
     harmonics, ground motions); ingest -> compare:<level>:<model> -> compare/summary;
-    everything -> report
+    ingest -> discrepancy (when enabled); everything -> report
 
 A task's key is the SHA-256 of its name, the content it reads (the source files of the tests it
 uses, with their campaign entries), the workflow settings it uses, the keys of the tasks it
@@ -20,7 +20,7 @@ from pathlib import Path
 
 from ..errors import InputError
 
-STAGES = ("ingest", "fit", "predict", "compare", "report")
+STAGES = ("ingest", "fit", "predict", "compare", "discrepancy", "report")
 TARGETS = STAGES + ("all",)
 
 
@@ -142,8 +142,20 @@ def plan(wf) -> dict[str, Task]:
                           {"levels": [lv.id for lv in levels]}))
         cmp_names = ["compare/summary"]
 
+    disc = []
+    dc = cfg["discrepancy"]
+    if dc["enabled"]:
+        dtests = _select(camp, wf, dc["tests"] or f["tests"], dc["kinds"] or f["kinds"],
+                         "[discrepancy] tests/kinds")
+        disc = ["discrepancy"]
+        tasks.append(Task("discrepancy", "discrepancy", ["ingest"],
+                          {"discrepancy": wf.section_hash("discrepancy"), "fit": wf.section_hash("fit"),
+                           "seed": wf.seed, "tests": _test_parts(dtests, hashes)},
+                          ["discrepancy"], {"tests": [t.id for t in dtests]}, heavy=True,
+                          key_deps=[]))
+
     if cfg["report"]["enabled"]:
-        deps = ["ingest", "fit/summary"] + pred_names + cmp_names
+        deps = ["ingest", "fit/summary"] + pred_names + cmp_names + disc
         tasks.append(Task("report", "report", deps,
                           {"report": wf.section_hash("report"), "workflow": wf.section_hash("workflow")},
                           [str(Path(wf.report_dir) / "index.html")]))
@@ -167,9 +179,6 @@ def closure(tasks: dict[str, Task], targets) -> list[str]:
             wanted.update(n for n, t in tasks.items() if t.stage == tg)
         elif tg in tasks:
             wanted.add(tg)
-        elif tg == "discrepancy":
-            raise InputError("target 'discrepancy': the discrepancy stage is not part of the "
-                             "pipeline yet (issue 5); targets: " + ", ".join(TARGETS))
         else:
             raise InputError(f"unknown target {tg!r}; targets: {', '.join(TARGETS)} or a task "
                              f"name ({', '.join(tasks)})")

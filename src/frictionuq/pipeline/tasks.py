@@ -8,6 +8,7 @@ validate, predict, compare, report) on the run folder's layout
     RUN/predict/validation/          validation.json, <test>.bands.csv, <test>.png
     RUN/predict/<name>/              bands.csv, cycles.csv, prediction.json
     RUN/compare/<level>/<model>/     level.json; RUN/compare/compare.json, compare.csv
+    RUN/discrepancy/                 discrepancy.json, refit/ (frictionuq discover)
     <report dir>/index.html
 
 `execute` is the entry point of worker processes (spawned, or Dask workers): it takes plain,
@@ -181,6 +182,17 @@ def _compare_summary(wf, task, log):
     log(f"comparison of {', '.join(models)} at {len(levels)} level(s) written")
 
 
+def _discrepancy(wf, task, log):
+    from dataclasses import replace
+    from ..discrepancy.discover import discover
+    d = Path(wf.out) / "discrepancy"
+    _fresh_dir(d, task.key, log)
+    cfg = replace(wf.fit_config(), tests=tuple(task.args["tests"]), kinds=None)
+    doc = discover(Path(wf.out) / "ingest", d, cfg, seed=wf.seed,
+                   refit=wf.config["discrepancy"]["refit"], log=log)
+    log(f"discrepancy: named effect {doc['named_effect']}")
+
+
 def _report(wf, task, log):
     from ..report import render_report
     from .provenance import provenance
@@ -190,7 +202,8 @@ def _report(wf, task, log):
 
 
 RUNNERS = {"ingest": _ingest, "fit": _fit, "fit/summary": _fit_summary, "predict": _predict,
-           "compare": _compare, "compare/summary": _compare_summary, "report": _report}
+           "compare": _compare, "compare/summary": _compare_summary,
+           "discrepancy": _discrepancy, "report": _report}
 
 
 def runner_of(task):

@@ -12,16 +12,17 @@ SECTIONS: list[tuple[str, str]] = [
     ("advantage", "Mechanical advantage"),
     ("comparison", "Model comparison"),
     ("predictions", "Predictions and validation"),
+    ("discrepancy", "Discrepancy: the missing effect"),
     ("provenance", "Provenance"),
 ]
 
 
 def build_sections(ctx, generated: str) -> list[dict]:
     """[{"id", "title", "blocks"}] for every section of SECTIONS (never an empty one)."""
-    from . import campaign, comparison, fits, levels, predictions, provenance
+    from . import campaign, comparison, discrepancy, fits, levels, predictions, provenance
     builders = {"campaign": campaign.build, "fits": fits.build, "across": levels.across,
                 "advantage": levels.advantage, "comparison": comparison.build,
-                "predictions": predictions.build,
+                "predictions": predictions.build, "discrepancy": discrepancy.build,
                 "provenance": lambda c: provenance.build(c, generated)}
     out = []
     for sid, title in SECTIONS:

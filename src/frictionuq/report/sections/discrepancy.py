@@ -1,0 +1,34 @@
+"""Section "discrepancy": what `frictionuq discover` (the workflow's discrepancy stage) found:
+the named effect or none, the candidates ranked by held-out ELPD gain, RMSE before and after,
+the effect's parameters with intervals."""
+from __future__ import annotations
+
+import json
+
+from .. import blocks as B
+from ..tables import num, table
+
+
+def build(ctx) -> list[dict]:
+    p = ctx.run_dir / "discrepancy" / "discrepancy.json"
+    if not p.is_file():
+        return [B.note("The discrepancy stage was not run in this workflow ([discrepancy] enabled = "
+                       "false); `frictionuq discover CAMPAIGN --out DIR` runs it on its own.")]
+    d = json.loads(p.read_text())
+    out = [B.para(f"Named effect: {d['named_effect']}. {d['reason']}."),
+           B.para(f"RMSE before (baseline 3-stage, at its MAP): {num(d['rmse_before'])} N; after: "
+                  f"{num(d['rmse_after'])} N"
+                  + (f"; estimated noise scale {num(d['noise_scale'])} N." if d.get("noise_scale") else "."))]
+    rows = [(c["effect"], num(c["elpd_gain"]), num(c["elpd_gain_se"]),
+             ", ".join(num(g) for g in c["gain_per_unit"]), num(c["rmse_after"]), c["n_params"])
+            for c in d["candidates"]]
+    out.append(B.html(table(["candidate effect", "held-out ELPD gain (nats)", "SE (nats)",
+                             "gain per held-out unit (nats)", "RMSE at its MAP (N)", "parameters"],
+                            rows, caption="candidates, ranked")))
+    if d.get("effect_parameters"):
+        out.append(B.html(table(["parameter", "mean", "2.5 %", "97.5 %", "unit"],
+                                [(n, num(s["mean"]), num(s["q2.5"]), num(s["q97.5"]), s["unit"])
+                                 for n, s in d["effect_parameters"].items()],
+                                caption="the named effect's parameters (MCMC refit)")))
+    out.append(B.note("Decision rule: " + d.get("decision_rule", "")))
+    return out
