@@ -3,21 +3,17 @@ frictionuq.infer.compare.compare_campaign), laid out like the BRFD paper's Table
 paper's RMSE beside ours where the device is the BRFD."""
 from __future__ import annotations
 
+from ...published import BRFD_TABLE4_RMSE_N
 from .. import blocks as B
 from ..context import read_json
 from ..tables import DASH, badge, num, scaled, table
 
 #: BRFD seed paper, Downey et al., "High capacity variable friction damper based on band brake
 #: technology", Eng. Struct. 113 (2016) 287-298, Table 4 "Comparison of fitting RMSE (kN)", as
-#: printed: {applied force (N): {excitation frequency (Hz): (3-stage, LuGre)}}. The same numbers
-#: in N are frictionuq.published.BRFD_TABLE4_RMSE_N (tests/test_report.py checks they agree).
-PAPER_TABLE4_RMSE_KN = {
-    35.0: {0.05: (5.96, 15.4), 0.1: (6.98, 13.3), 0.2: (8.81, 21.1), 0.5: (14.3, 29.3)},
-    53.0: {0.05: (3.07, 5.38), 0.1: (3.25, 5.38), 0.2: (3.51, 6.00), 0.5: (3.34, 5.47)},
-    66.0: {0.05: (4.54, 44.5), 0.1: (2.80, 40.7), 0.2: (2.45, 55.1), 0.5: (4.00, 100.0)},
-    133.0: {0.05: (7.56, 76.3), 0.1: (15.7, 127.0), 0.2: (44.1, 46.2), 0.5: (27.8, 117.0)},
-    267.0: {0.05: (5.56, 115.0), 0.1: (9.56, 58.9), 0.2: (12.0, 40.5), 0.5: (22.7, 126.0)},
-}
+#: printed: {applied force (N): {excitation frequency (Hz): (3-stage, LuGre)}}, from the one copy
+#: in frictionuq.published.BRFD_TABLE4_RMSE_N (N).
+PAPER_TABLE4_RMSE_KN = {a: {f: (v[0] / 1e3, v[1] / 1e3) for f, v in row.items()}
+                        for a, row in BRFD_TABLE4_RMSE_N.items()}
 PAPER_LEVEL_RTOL = 0.02
 LABEL = {"three_stage": "3-stage", "lugre": "LuGre"}
 ORDER = ("three_stage", "lugre")
