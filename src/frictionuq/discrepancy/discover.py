@@ -12,11 +12,10 @@
 rmse_before is the baseline's RMSE at its MAP (offset removed) on the fit's records;
 candidate rmse_after values are at each candidate's MAP; the final rmse_after is the refit's
 posterior-median prediction. noise_scale is the marginal sd of the measurement noise the refit
-(or, with "none", the baseline) estimates: sigma / sqrt(1 - phi^2), median over the tests.
+(or, with "none", the baseline) estimates: sigma_noise (a marginal sd), median over the tests.
 """
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -30,12 +29,9 @@ from . import screen
 
 
 def _noise_scale(entry: dict) -> float | None:
-    vals = []
-    for name, st in entry["parameters"].items():
-        if name.startswith("sigma_noise["):
-            tid = name[len("sigma_noise["):-1]
-            phi = entry["parameters"].get(f"noise_phi[{tid}]", {"mean": 0.0})["mean"]
-            vals.append(st["mean"] / math.sqrt(max(1e-12, 1 - phi ** 2)))
+    """Median over the tests of the posterior mean of sigma_noise (the marginal sd of the
+    measurement noise, AR(1) included: see infer.noisemodel)."""
+    vals = [st["mean"] for name, st in entry["parameters"].items() if name.startswith("sigma_noise[")]
     return float(np.median(vals)) if vals else None
 
 
