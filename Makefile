@@ -10,7 +10,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 PYTHON_FOUND = $(shell tools/find-python)
 
-.PHONY: demo test install install-test bench bench-fit clean-venv
+.PHONY: demo test install install-test bench bench-fit bench-discover clean-venv
 
 demo: $(VENV)/.installed
 	$(VENV)/bin/frictionuq run workflows/quick.toml -j 2
@@ -24,6 +24,9 @@ bench: $(VENV)/.installed-test
 
 bench-fit: $(VENV)/.installed-test
 	$(PY) benchmarks/bench_fit.py
+
+bench-discover: $(VENV)/.installed-test
+	$(PY) benchmarks/bench_discover.py
 
 install: $(VENV)/.installed
 install-test: $(VENV)/.installed-test
