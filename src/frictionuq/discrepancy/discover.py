@@ -5,7 +5,9 @@
 2. Decide (screen.decide): the best candidate, or "none" (decision rule in screen.py).
 3. Refit by MCMC (infer.fit.run_fit) with the named effect, per level: the effect's parameters
    with 95 % intervals, and the RMSE after.
-4. Residual diagnostics of the baseline and, when an effect is named, of the refit.
+4. Residual diagnostics (diagnostics.py) of every test at the baseline's MAP and, when an effect
+   is named, at the MAP with it: which views show significant structure before and after
+   (figures DIR/residuals-<model>-<test>.png).
 5. Write DIR/discrepancy.json (forces in N) and the chains/posteriors of the refit under
    DIR/refit/.
 
@@ -35,8 +37,32 @@ def _noise_scale(entry: dict) -> float | None:
     return float(np.median(vals)) if vals else None
 
 
+def _diagnostics(level_tests, cfg, effects, map_values: dict, seed: int, fig_dir: Path, tag: str,
+                 log) -> list[dict]:
+    """Residual diagnostics (diagnostics.diagnose) of each test of a level at a MAP point (the
+    baseline's, or the named effect's), on the fit's records; figures in fig_dir."""
+    from .diagnostics import diagnose
+    from .plots import residual_figure
+    lp, _ = screen._logpost(level_tests, effects, cfg)
+    th = lp.space.to_theta({n: map_values[n] for n in lp.space.names})[None, :]
+    off = float(lp.space.offset(th)[0])
+    out = []
+    for rec in lp.records:
+        F = lp.simulate(th, rec)[0] + off
+        d = diagnose(rec.t, rec.x, rec.y - F, force_model=F, eps=rec.eps, applied=rec.applied,
+                     seed=seed)
+        name = f"residuals-{tag.replace(' ', '-')}-{rec.id}.png"
+        atomic.write_bytes(fig_dir / name, residual_figure(d, None, title=f"{rec.id}: residuals, {tag}"))
+        sig = [k if k != "spectrum" else f"spectrum ({d['spectrum']['wavelength_m'] * 1e3:.3g} mm)"
+               for k in d["significant"]]
+        log(f"diagnostics {tag} {rec.id}: significant structure in {', '.join(sig) or 'none'}")
+        out.append({"test": rec.id, "model": tag, "figure": name, "significant_views": sig,
+                    "diagnostics": d})
+    return out
+
+
 def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: int = 1,
-             effects=None, refit: bool = True, log=None) -> dict:
+             effects=None, refit: bool = True, diagnostics: bool = True, log=None) -> dict:
     """Run the workflow on a campaign; returns (and writes) the discrepancy document."""
     from .. import __version__
     from ..campaign import load_campaign
@@ -94,6 +120,14 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
     elif named != "none":
         best = next(r for r in ranked if r["effect"] == named)
         doc["rmse_after"] = best["rmse_map"]
+    if diagnostics:
+        doc["diagnostics"] = []
+        for s_, lv in zip(specs, levels):
+            doc["diagnostics"] += _diagnostics(s_.tests, cfg, (), lv["models"]["baseline"]["map"],
+                                               seed, out, "baseline", log)
+            if named != "none":
+                doc["diagnostics"] += _diagnostics(s_.tests, cfg, (named,), lv["models"][named]["map"],
+                                                   seed, out, f"with {named}", log)
     doc["seconds"] = time.perf_counter() - t0
     atomic.write_json(out / "discrepancy.json", jsonable(doc))
     return doc

@@ -45,12 +45,12 @@ from ..campaign import Record
 from ..infer.compare import elpd_total, heldout_loglik
 from ..infer.fit import FitConfig, FitSpec, prepare
 from ..infer.likelihood import LogPosterior, records_from_tests
-from ..infer.optimize import find_map, least_squares_fit, whitening
+from ..infer.optimize import coarsened, find_map, least_squares_fit, whitening
 
 MIN_GAIN = 10.0
 MIN_UNIT_GAIN = 5.0
 MIN_UNITS_FOR_SE = 5
-N_EFFECT_STARTS = 3
+N_EFFECT_STARTS = 12
 N_BLOCKS = 3
 
 
@@ -104,19 +104,25 @@ def _theta_in(space_to, space_from, theta_from) -> np.ndarray:
 def _candidate_map(logpost, base: dict, rng) -> tuple[np.ndarray, float]:
     """MAP of baseline + one effect by least squares from the baseline's MAP, the effect's
     parameters at their default and at N_EFFECT_STARTS draws from their prior (the baseline's
-    own multi-start search already placed the other parameters)."""
+    own multi-start search already placed the other parameters). The starts are run on the
+    coarsened log-posterior (as in find_map), the best two refined on the full one."""
     sp = logpost.space
+    coarse = coarsened(logpost)
     th0 = _theta_in(sp, base["space"], base["all"])
     eff_idx = [i for i, n in enumerate(sp.names) if n not in base["space"].names]
     starts = [th0]
-    draws = sp.sample_prior(N_EFFECT_STARTS, rng)
-    for d in draws:
+    for d in sp.sample_prior(N_EFFECT_STARTS, rng):
         th = th0.copy()
         th[eff_idx] = d[eff_idx]
         starts.append(th)
-    best, best_lp = th0, -np.inf
+    first = []
     for s0 in starts:
-        th, _ = least_squares_fit(logpost, s0, max_nfev=120)
+        th, _ = least_squares_fit(coarse, s0, max_nfev=100)
+        first.append((float(coarse.log_prob(th[None, :])[0]), th))
+    first.sort(key=lambda z: -z[0])
+    best, best_lp = th0, float(logpost.log_prob(th0[None, :])[0])
+    for _, s0 in first[:2]:
+        th, _ = least_squares_fit(logpost, s0, max_nfev=60)
         for _ in range(2):          # AR(1)-whitened refinement, as in the MAP search
             th, _ = least_squares_fit(logpost, th, max_nfev=40, white=whitening(logpost, th))
         lp = float(logpost.log_prob(th[None, :])[0])

@@ -30,5 +30,23 @@ def build(ctx) -> list[dict]:
                                 [(n, num(s["mean"]), num(s["q2.5"]), num(s["q97.5"]), s["unit"])
                                  for n, s in d["effect_parameters"].items()],
                                 caption="the named effect's parameters (MCMC refit)")))
+    out.extend(diagnostics_blocks(ctx, d))
     out.append(B.note("Decision rule: " + d.get("decision_rule", "")))
+    return out
+
+
+def diagnostics_blocks(ctx, d: dict) -> list[dict]:
+    """Residual signatures before (baseline) and after (with the named effect), per test."""
+    out = []
+    rows = [(g["test"], g["model"], ", ".join(g["significant_views"]) or "none")
+            for g in d.get("diagnostics", [])]
+    if rows:
+        out.append(B.html(table(["test", "model", "views with significant structure (Holm, 1 %)"],
+                                rows, caption="residual diagnostics before and after")))
+    for g in d.get("diagnostics", []):
+        p = ctx.run_dir / "discrepancy" / g["figure"]
+        if p.is_file():
+            out.append(B.figure(p.read_bytes(), f"residuals {g['test']} {g['model']}",
+                                f"{g['test']}, {g['model']}: binned residual means (N) per view, "
+                                "significant views marked; position-locked spectrum"))
     return out
