@@ -88,3 +88,27 @@ def test_last_line_of_a_task_log(tmp_path):
     p.write_text("[    1.0 s] start\n[   12.5 s] fit a: step 500: max tau 30\n")
     assert _last_line(p) == "fit a: step 500: max tau 30"
     assert _last_line(tmp_path / "absent.log") == ""
+
+
+def test_a_dependency_recomputed_in_another_run_makes_its_dependents_stale(tmp_path):
+    up = Task("fit:a", "fit", [], {}, ["a.txt"], key="ka")
+    down = Task("report", "report", ["fit:a"], {}, ["r.txt"], key="kr")
+    (tmp_path / "a.txt").write_text("posterior 1")
+    cache.record(tmp_path, up, 1.0)
+    (tmp_path / "r.txt").write_text("report of posterior 1")
+    cache.record(tmp_path, down, 1.0)
+    assert cache.state(tmp_path, down) == (True, "up to date")
+    (tmp_path / "a.txt").write_text("posterior 2")         # e.g. `run fit --force` alone
+    cache.record(tmp_path, up, 1.0)
+    ok, why = cache.state(tmp_path, down)
+    assert not ok and "dependency fit:a was recomputed since" in why
+    # a dependency recomputed to the same bytes leaves it up to date (content, not time)
+    cache.record(tmp_path, down, 1.0)
+    cache.record(tmp_path, up, 2.0)
+    assert cache.state(tmp_path, down)[0]
+    # tasks that name their inputs' content in their key (key_deps=[]) do not follow the dep
+    fit = Task("fit:b", "fit", ["fit:a"], {}, ["r.txt"], key="kb", key_deps=[])
+    cache.record(tmp_path, fit, 1.0)
+    (tmp_path / "a.txt").write_text("posterior 3")
+    cache.record(tmp_path, up, 1.0)
+    assert cache.state(tmp_path, fit)[0]

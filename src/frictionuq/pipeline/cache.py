@@ -61,8 +61,26 @@ def output_files(run_dir, outputs) -> dict[str, str]:
     return files
 
 
+def key_deps(task) -> list[str]:
+    return list(task.deps if task.key_deps is None else task.key_deps)
+
+
+def outputs_digest(run_dir, name: str) -> str | None:
+    """Digest of the outputs a finished task recorded (None: no cache entry)."""
+    m = read(run_dir, name)
+    if not m or "outputs" not in m:
+        return None
+    return hashlib.sha256(json.dumps(m["outputs"], sort_keys=True).encode()).hexdigest()
+
+
+def dep_digests(run_dir, task) -> dict:
+    return {d: outputs_digest(run_dir, d) for d in key_deps(task)}
+
+
 def state(run_dir, task) -> tuple[bool, str]:
-    """(up to date?, reason) for a planned task."""
+    """(up to date?, reason) for a planned task. Besides its own key and outputs, the outputs of
+    the tasks it depends on must be those it was computed from (a dependency recomputed in
+    another run makes it stale, as a newer prerequisite does in make)."""
     mp = manifest_path(run_dir, task.name)
     if not mp.is_file():
         return False, "never run (no cache entry)"
@@ -80,6 +98,10 @@ def state(run_dir, task) -> tuple[bool, str]:
             return False, f"output {rel} is missing"
         if sha256(p) != h:
             return False, f"output {rel} changed since it was written (corrupted cache entry)"
+    before = m.get("dep_outputs", {})
+    for d, now in dep_digests(run_dir, task).items():
+        if before.get(d) != now:
+            return False, f"dependency {d} was recomputed since"
     return True, "up to date"
 
 
@@ -87,7 +109,7 @@ def record(run_dir, task, seconds: float) -> dict:
     from .. import __version__
     m = {"task": task.name, "stage": task.stage, "key": task.key, "package_version": __version__,
          "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "seconds": seconds,
-         "outputs": output_files(run_dir, task.outputs)}
+         "outputs": output_files(run_dir, task.outputs), "dep_outputs": dep_digests(run_dir, task)}
     atomic.write_json(manifest_path(run_dir, task.name), m)
     return m
 
