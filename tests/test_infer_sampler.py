@@ -106,3 +106,15 @@ def test_independence_move_samples_a_correlated_gaussian():
     se = 1.0 / np.sqrt(n_eff)
     assert np.all(np.abs(ch.mean(axis=0)) < 5 * se)
     assert np.all(np.abs(np.cov(ch.T) - C) < 5 * np.sqrt(2.0 / n_eff) + 0.01)
+
+
+def test_an_unreadable_stored_chain_is_started_afresh(tmp_path):
+    """A chain file left unreadable (a process killed inside an HDF5 write) is not resumed and
+    does not fail the fit: it is replaced, and the log says why."""
+    from frictionuq.infer.sampler import _open_backend
+    p = tmp_path / "chain.h5"
+    p.write_bytes(b"\x89HDF\r\n\x1a\n" + b"\x00" * 64)     # an HDF5 signature and nothing more
+    msgs = []
+    be, done = _open_backend(p, 8, 3, resume=True, log=msgs.append)
+    assert done == 0 and be.iteration == 0
+    assert msgs and "unreadable" in msgs[0] and "starting afresh" in msgs[0]

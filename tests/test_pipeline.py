@@ -205,9 +205,13 @@ def test_killed_run_resumes_its_fit(tmp_path):
     assert (wf.out / "fit" / "applied-36lb" / "chain.h5").is_file()
     p.write_text(WF.format(steps=3000))                           # same key
     res = run(load_workflow(p), ["fit:applied-36lb"])
-    assert res.ran == ["fit:applied-36lb"]
+    assert res.ran == ["fit:applied-36lb"], res.failed
     text = log.read_text()
-    assert "resuming in" in text and "resuming from stored step" in text, text[:2000]
+    assert "resuming in" in text, text[:2000]
+    # the chain resumes, unless the kill landed inside an HDF5 write and left the file's data
+    # unreadable: then the fit says so and starts afresh (it must never fail on it)
+    assert ("resuming from stored step" in text
+            or ("unreadable" in text and "starting afresh" in text)), text[:3000]
 
 
 def test_fits_on_a_dask_localcluster(first_run):

@@ -262,9 +262,11 @@ class OpenHDFBackend(emcee.backends.HDFBackend):
 COORDS = "frictionuq unbounded logit-of-box coordinates v2 (independence proposal in attrs)"
 
 
-def _open_backend(backend_path, nw, ndim, resume):
+def _open_backend(backend_path, nw, ndim, resume, log=None):
     """(backend, steps already stored). A stored chain is resumed only when it was written in the
-    same coordinates (attribute `coordinates` of the backend's group) and with the same shape."""
+    same coordinates (attribute `coordinates` of the backend's group), with the same shape, and
+    every stored array reads back: a process killed in the middle of an HDF5 write can leave a
+    file whose metadata opens but whose data does not, and such a file is started afresh."""
     if backend_path is None:
         return None, 0
     backend_path = Path(backend_path)
@@ -275,9 +277,13 @@ def _open_backend(backend_path, nw, ndim, resume):
             with be.open() as f:
                 coords = f[be.name].attrs.get("coordinates", "")
             if be.initialized and be.shape == (nw, ndim) and be.iteration > 0 and coords == COORDS:
+                be.get_chain(), be.get_log_prob(), be.get_blobs(), be.get_last_sample()
+                _load_proposal(be)
                 return be, int(be.iteration)
-        except Exception:            # unreadable / corrupted file: start again
-            pass
+        except Exception as e:       # unreadable / corrupted file: start again
+            if log is not None:
+                log(f"stored chain {backend_path.name} unreadable ({type(e).__name__}: "
+                    f"{' '.join(str(e).split())[:120]}): starting afresh")
     if backend_path.exists():
         backend_path.unlink()
     be = OpenHDFBackend(str(backend_path))
@@ -324,7 +330,7 @@ def sample(logpost: LogPosterior, scales: RecordScales, seed: int,
     t0 = time.perf_counter()
     rng = np.random.default_rng(seed)
     target = UnboundedPosterior(logpost)
-    backend, resumed = _open_backend(backend_path, nw, ndim, resume)
+    backend, resumed = _open_backend(backend_path, nw, ndim, resume, log)
 
     theta_map, lp_map, map_info = find_map(logpost, scales, rng, cfg.n_random_starts,
                                            cfg.n_prior_starts, log=log)
