@@ -198,22 +198,37 @@ def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True
 def fit_campaign(campaign_path, out_dir, by: str = "applied", config: FitConfig | None = None,
                  resume: bool = True, log=None) -> dict:
     """Fit every group of a campaign (serially) and write out_dir/summary.json."""
-    from .. import __version__
     from ..campaign import load_campaign
     camp = load_campaign(campaign_path)
     specs = plan(camp, by, config)
     fits = [run_fit(s, out_dir, camp.name, resume, log) for s in specs]
+    return write_summary(out_dir, camp, by, config or FitConfig(), fits, campaign_path, log=log)
+
+
+def write_summary(out_dir, camp, by: str, config: FitConfig, fits: list[dict], campaign_path, *,
+                  law: bool = True, family: str = "auto", extra: dict | None = None,
+                  log=None) -> dict:
+    """Write out_dir/summary.json for finished fits and, with fits by applied force at 2 or more
+    levels above zero (and `law`), fit the force-dependence law (law.json, named in the summary;
+    a stale law.json is removed otherwise). Returns the summary."""
+    from .. import __version__
+    from .law import LAW_FILE, fit_law
+    log = log or (lambda m: None)
+    out_dir = Path(out_dir)
     summary = {"package_version": __version__, "campaign": camp.name,
                "campaign_path": str(campaign_path), "by": by,
                "units": {"applied": camp.units.get("applied", "N"),
                          "note": "every value in this file is SI (N, m, s, Pa); `applied` names "
                                  "the campaign's unit for the applied force, used by the CLI"},
-               "config": (config or FitConfig()).to_json(), "fits": fits}
-    atomic.write_json(Path(out_dir) / "summary.json", jsonable(summary))
-    if by == "applied" and sum(1 for f in fits if (f.get("applied") or 0) > 0) >= 2:
-        from .law import fit_law
-        doc = fit_law(out_dir, seed=(config or FitConfig()).seed, log=log or (lambda m: None))
-        summary["law"] = {"file": "law.json", "family": doc["family"]}
-        atomic.write_json(Path(out_dir) / "summary.json", jsonable(summary))
+               "config": config.to_json(), **(extra or {}), "fits": fits}
+    (out_dir / LAW_FILE).unlink(missing_ok=True)
+    atomic.write_json(out_dir / "summary.json", jsonable(summary))
+    if law and by == "applied" and sum(1 for f in fits if (f.get("applied") or 0) > 0) >= 2:
+        doc = fit_law(out_dir, family=family, seed=config.seed, log=log)
+        summary["law"] = {"file": LAW_FILE, "family": doc["family"]}
+        atomic.write_json(out_dir / "summary.json", jsonable(summary))
+    else:
+        log("force-dependence law not fitted (needs fits by applied force at 2 or more levels "
+            "above zero)")
     return summary
 

@@ -91,33 +91,16 @@ def _fit(wf, task, log):
 
 
 def _fit_summary(wf, task, log):
-    from .. import __version__
     from ..advantage import write_advantage
-    from ..infer.fit import jsonable
-    from ..infer.law import LAW_FILE, fit_law
+    from ..infer.fit import write_summary
     fit_dir = Path(wf.out) / "fit"
     camp, _ = _campaign(wf.out)
-    fits = []
-    for dep in task.deps:
-        fid = dep.split(":", 1)[1]
-        fits.append(json.loads((fit_dir / fid / "fit.json").read_text())["summary"])
-    fc = wf.fit_config()
-    summary = {"package_version": __version__, "campaign": camp.name,
-               "campaign_path": str(Path(wf.out) / "ingest"), "by": wf.config["fit"]["by"],
-               "units": {"applied": camp.units.get("applied", "N"),
-                         "note": "every value in this file is SI (N, m, s, Pa); `applied` names "
-                                 "the campaign's unit for the applied force, used by the CLI"},
-               "config": fc.to_json(), "workflow": str(wf.path), "fits": fits}
-    (fit_dir / LAW_FILE).unlink(missing_ok=True)
-    atomic.write_json(fit_dir / "summary.json", jsonable(summary))
-    positive = [f for f in fits if (f.get("applied") or 0) > 0]
-    if wf.config["law"]["enabled"] and summary["by"] == "applied" and len(positive) >= 2:
-        doc = fit_law(fit_dir, family=wf.config["law"]["family"], seed=wf.seed, log=log)
-        summary["law"] = {"file": LAW_FILE, "family": doc["family"]}
-        atomic.write_json(fit_dir / "summary.json", jsonable(summary))
-    else:
-        log("force-dependence law not fitted (needs [law] enabled, fits by applied force and "
-            "2 or more levels above zero)")
+    fits = [json.loads((fit_dir / dep.split(":", 1)[1] / "fit.json").read_text())["summary"]
+            for dep in task.deps]
+    summary = write_summary(fit_dir, camp, wf.config["fit"]["by"], wf.fit_config(), fits,
+                            Path(wf.out) / "ingest", law=wf.config["law"]["enabled"],
+                            family=wf.config["law"]["family"], extra={"workflow": str(wf.path)},
+                            log=log)
     if summary["by"] == "applied":
         write_advantage(fit_dir, Path(wf.out) / "advantage")
     log(f"summary of {len(fits)} fit(s) written")
