@@ -30,6 +30,8 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", type=int, nargs="+", default=[11])
     ap.add_argument("--devices", nargs="+", default=["brfd", "mfd"])
     ap.add_argument("--effects", nargs="+", default=[None] + list(P.EFFECTS))
+    ap.add_argument("--verbose", action="store_true", help="also the top two candidates' gain per "
+                    "held-out unit and the decision's reason")
     a = ap.parse_args(argv)
     cfg = FitConfig(samples_per_cycle=100, sampler=SamplerConfig(max_steps=3000, progress=False))
     rows = []
@@ -52,11 +54,16 @@ def main(argv=None) -> int:
                         row["params_inside"] = f"{sum(ok)}/{len(ok)}"
                     best = doc["candidates"][0] if doc["candidates"] else {}
                     row["best"] = f"{best.get('effect')} {best.get('elpd_gain', 0):+.1f}"
+                    row["per_unit"] = {c["effect"]: [round(g, 1) for g in c["gain_per_unit"]]
+                                       for c in doc["candidates"][:2]}
                     rows.append(row)
                     print(f"{dev:<5} hidden {row['hidden']:<19} named {row['named']:<19} "
                           f"best {row['best']:<28} RMSE {row['rmse_before']:8.1f} -> "
                           f"{row['rmse_after']:8.1f} N (noise {row['noise']:.1f} N) "
                           f"{row.get('params_inside', ''):>5} {secs:6.1f} s", flush=True)
+                    if a.verbose:
+                        print(f"      gain per held-out unit (nats): {row['per_unit']}; "
+                              f"{doc['reason']}", flush=True)
     hits = sum(r["named"] == r["hidden"] for r in rows if r["hidden"] != "none")
     n_eff = sum(r["hidden"] != "none" for r in rows)
     fa = sum(r["named"] != "none" for r in rows if r["hidden"] == "none")

@@ -136,7 +136,9 @@ def _cmd_discover(a):
           + (f", noise scale {d['noise_scale']:.4g} N" if d["noise_scale"] else ""))
     for n, st in d["effect_parameters"].items():
         print(f"  {n} = {st['mean']:.4g} {st['unit']} [{st['q2.5']:.4g}, {st['q97.5']:.4g}]")
-    print(f"wrote {a.out}/discrepancy.json")
+    from .report import render_discrepancy_page
+    page = render_discrepancy_page(a.out)
+    print(f"wrote {a.out}/discrepancy.json and {page}")
 
 
 def _cmd_run(a):
@@ -291,7 +293,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("discover", help="name the effect the model misses (screen the effect library, refit)")
     s.add_argument("campaign", help="campaign folder or ingested folder")
-    s.add_argument("--out", required=True, help="output folder: discrepancy.json, refit/")
+    s.add_argument("--out", required=True, help="output folder: discrepancy.json, report.html, figures, refit/")
     s.add_argument("--likelihood", choices=["iid", "ar1"], default="ar1")
     s.add_argument("--no-refit", action="store_true", help="screen and name only (no MCMC refit)")
     _add_selection(s, "cap on stored sampler steps of the refit")

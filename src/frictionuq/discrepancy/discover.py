@@ -5,9 +5,10 @@
 2. Decide (screen.decide): the best candidate, or "none" (decision rule in screen.py).
 3. Refit by MCMC (infer.fit.run_fit) with the named effect, per level: the effect's parameters
    with 95 % intervals, and the RMSE after.
-4. Residual diagnostics (diagnostics.py) of every test at the baseline's MAP and, when an effect
-   is named, at the MAP with it: which views show significant structure before and after
-   (figures DIR/residuals-<model>-<test>.png).
+4. The gap before and after, per test: residual diagnostics (diagnostics.py) at the baseline's MAP
+   and, when an effect is named, at the MAP with it: which views show significant structure
+   before and after (figures DIR/residuals-<model>-<test>.png), and the force-displacement loops
+   of both models over the data with their residuals (DIR/loops-<test>.png).
 5. Write DIR/discrepancy.json (forces in N) and the chains/posteriors of the refit under
    DIR/refit/.
 
@@ -37,27 +38,49 @@ def _noise_scale(entry: dict) -> float | None:
     return float(np.median(vals)) if vals else None
 
 
-def _diagnostics(level_tests, cfg, effects, map_values: dict, seed: int, fig_dir: Path, tag: str,
-                 log) -> list[dict]:
-    """Residual diagnostics (diagnostics.diagnose) of each test of a level at a MAP point (the
-    baseline's, or the named effect's), on the fit's records; figures in fig_dir."""
-    from .diagnostics import diagnose
-    from .plots import residual_figure
+def _model_forces(level_tests, cfg, effects, map_values: dict) -> list[tuple]:
+    """[(fit record, simulated force at the MAP point incl. the load-cell offset (N))] per test."""
     lp, _ = screen._logpost(level_tests, effects, cfg)
     th = lp.space.to_theta({n: map_values[n] for n in lp.space.names})[None, :]
     off = float(lp.space.offset(th)[0])
+    return [(rec, lp.simulate(th, rec)[0] + off) for rec in lp.records]
+
+
+def _rmse(r) -> float:
+    return float(np.sqrt(np.mean((r - r.mean()) ** 2)))
+
+
+def _gap(level_tests, cfg, level: dict, named: str, seed: int, fig_dir: Path, log) -> list[dict]:
+    """The gap before and after, per test of a level: residual diagnostics (diagnostics.diagnose)
+    at the baseline's MAP and, when an effect is named, at the MAP with it (figures
+    residuals-<model>-<test>.png), and the loops of both models over the data with their
+    residuals (loops-<test>.png); RMSE (offset removed) of each."""
+    from .diagnostics import diagnose
+    from .plots import loop_figure, residual_figure
+    models = [("baseline", ())] + ([(f"with {named}", (named,))] if named != "none" else [])
+    forces = {tag: _model_forces(level_tests, cfg, eff, level["models"][eff[0] if eff else "baseline"]["map"])
+              for tag, eff in models}
     out = []
-    for rec in lp.records:
-        F = lp.simulate(th, rec)[0] + off
-        d = diagnose(rec.t, rec.x, rec.y - F, force_model=F, eps=rec.eps, applied=rec.applied,
-                     seed=seed)
-        name = f"residuals-{tag.replace(' ', '-')}-{rec.id}.png"
-        atomic.write_bytes(fig_dir / name, residual_figure(d, None, title=f"{rec.id}: residuals, {tag}"))
-        sig = [k if k != "spectrum" else f"spectrum ({d['spectrum']['wavelength_m'] * 1e3:.3g} mm)"
-               for k in d["significant"]]
-        log(f"diagnostics {tag} {rec.id}: significant structure in {', '.join(sig) or 'none'}")
-        out.append({"test": rec.id, "model": tag, "figure": name, "significant_views": sig,
-                    "diagnostics": d})
+    for tag, _ in models:
+        for rec, F in forces[tag]:
+            d = diagnose(rec.t, rec.x, rec.y - F, force_model=F, eps=rec.eps, applied=rec.applied,
+                         seed=seed)
+            name = f"residuals-{tag.replace(' ', '-')}-{rec.id}.png"
+            atomic.write_bytes(fig_dir / name, residual_figure(d, None, title=f"{rec.id}: residuals, {tag}"))
+            sig = [k if k != "spectrum" else f"spectrum ({d['spectrum']['wavelength_m'] * 1e3:.3g} mm)"
+                   for k in d["significant"]]
+            log(f"diagnostics {tag} {rec.id}: significant structure in {', '.join(sig) or 'none'}")
+            out.append({"test": rec.id, "model": tag, "figure": name, "significant_views": sig,
+                        "rmse": _rmse(rec.y - F), "diagnostics": d})
+    for i, (rec, _) in enumerate(forces["baseline"]):
+        name = f"loops-{rec.id}.png"
+        png = loop_figure(rec.t, rec.x, rec.y, {tag: forces[tag][i][1] for tag, _ in models},
+                          title=f"{rec.id}: measured and modelled force, "
+                                + (f"baseline and with {named}" if named != "none" else "baseline (none named)"))
+        atomic.write_bytes(fig_dir / name, png)
+        for g in out:
+            if g["test"] == rec.id:
+                g["loop_figure"] = name
     return out
 
 
@@ -88,7 +111,7 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
     log(f"named effect: {named} ({reason})")
     rmse_before = float(np.mean([lv["models"]["baseline"]["rmse_map"] for lv in levels]))
     doc = {"package_version": __version__, "campaign": camp.name, "campaign_path": str(campaign_path),
-           "seed": seed, "named_effect": named, "reason": reason,
+           "seed": seed, "config": cfg.to_json(), "named_effect": named, "reason": reason,
            "decision_rule": "screen.py: best held-out ELPD gain > max(10 nats, 2 SE), every held-out "
                             "unit improved, simpler effect preferred within 2 SE",
            "candidates": [{"effect": r["effect"], "elpd_gain": r["elpd_gain"],
@@ -123,11 +146,7 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
     if diagnostics:
         doc["diagnostics"] = []
         for s_, lv in zip(specs, levels):
-            doc["diagnostics"] += _diagnostics(s_.tests, cfg, (), lv["models"]["baseline"]["map"],
-                                               seed, out, "baseline", log)
-            if named != "none":
-                doc["diagnostics"] += _diagnostics(s_.tests, cfg, (named,), lv["models"][named]["map"],
-                                                   seed, out, f"with {named}", log)
+            doc["diagnostics"] += _gap(s_.tests, cfg, lv, named, seed, out, log)
     doc["seconds"] = time.perf_counter() - t0
     atomic.write_json(out / "discrepancy.json", jsonable(doc))
     return doc

@@ -22,6 +22,18 @@ NOISE_PHI = 0.9
 NOISE_REL_SD = 0.01                             # marginal sd, fraction of Fc
 
 
+def applied_signals(t, a_si: float, rng) -> tuple[np.ndarray, np.ndarray]:
+    """(actual, measured) applied force (SI) of a test: the actuator's force wanders around its
+    nominal value, smoothly (a slow sine of 8 % and three random components of 2 % between 0.05
+    and 1 Hz: a servo actuator does not follow white noise), and its load cell reads it with 0.3 %
+    white noise. The friction follows the actual force; the record carries the measured one."""
+    actual = 1.0 + 0.08 * np.sin(2 * np.pi * 0.37 * t + rng.uniform(0, 2 * np.pi))
+    for f in rng.uniform(0.05, 1.0, 3):
+        actual += 0.02 * np.sin(2 * np.pi * f * t + rng.uniform(0, 2 * np.pi))
+    actual *= a_si
+    return actual, actual + 0.003 * a_si * rng.standard_normal(t.size)
+
+
 def draw_effect(effect: str | None, rng, amp: float, v_max: float, energy: float) -> dict:
     """Effect parameters within realistic ranges (scaled to the drive where they are lengths)."""
     u = rng.uniform
@@ -72,12 +84,11 @@ def hidden_campaign(out_dir, device: str, effect: str | None, seed: int,
     (out / "tests").mkdir(parents=True, exist_ok=True)
     for tid, kind, f, t, x in drives:
         n = t.size
-        applied_sig = a_si * (1 + 0.08 * np.sin(2 * np.pi * 0.37 * t + rng.uniform(0, 6.28))
-                              + 0.02 * rng.standard_normal(n))
+        actual, measured = applied_signals(t, a_si, rng)
         F = simulate(t, x, p, effects=effects, eps=0.0,
-                     applied=applied_sig if effect == "applied_tracking" else None)
+                     applied=actual if effect == "applied_tracking" else None)
         y = F + ar1_from_normals(rng.standard_normal(n), NOISE_PHI, sd)
-        a_out = applied_sig if unit_applied == "N" else applied_sig / 6894.757293168
+        a_out = measured if unit_applied == "N" else measured / 6894.757293168
         body = "time,displacement,force,applied\n" + "".join(
             f"{a:.6f},{b:.9g},{c:.6f},{d:.6f}\n" for a, b, c, d in zip(t, x, y, a_out))
         atomic.write_text(out / "tests" / f"{tid}.csv", body)

@@ -121,3 +121,34 @@ def residual_figure(diag: dict, path=None, title: str | None = None, dpi: int = 
         with open(path, "wb") as fh:
             fh.write(data)
     return data
+
+
+def loop_figure(t, x, y, models: dict, title: str, dpi: int = 90) -> bytes:
+    """Force-displacement loops of the data (grey points) and of each model in `models`
+    ({label: force (N)}, e.g. the baseline and the model with the named effect) beside their
+    residuals against time, as PNG bytes. x in m (shown in mm), forces in N (shown in kN)."""
+    pyplot = _plt()
+    fig, (ax1, ax2) = pyplot.subplots(1, 2, figsize=(11.0, 4.0))
+    try:
+        ax1.plot(np.asarray(x) * 1e3, np.asarray(y) / 1e3, ".", ms=1.5, color="0.6", label="measured")
+        for i, (label, F) in enumerate(models.items()):
+            ax1.plot(np.asarray(x) * 1e3, np.asarray(F) / 1e3, "-", lw=1.0, color=f"C{i}", label=label)
+            r = np.asarray(y) - np.asarray(F)
+            ax2.plot(t, r, "-", lw=0.7, color=f"C{i}", alpha=0.8,
+                     label=f"{label}: RMSE {float(np.sqrt(np.mean((r - r.mean()) ** 2))):.4g} N")
+        ax1.set_xlabel("displacement x (mm)")
+        ax1.set_ylabel("force F (kN)")
+        ax1.set_title("force-displacement loops", fontsize=9)
+        ax1.legend(fontsize=7, loc="upper left")
+        ax2.axhline(0.0, color="0.4", lw=0.8)
+        ax2.set_xlabel("time t (s)")
+        ax2.set_ylabel("data - model (N)")
+        ax2.set_title("residuals against time", fontsize=9)
+        ax2.legend(fontsize=7, loc="upper right")
+        fig.suptitle(title, fontsize=10)
+        fig.tight_layout(rect=(0, 0, 1, 0.94))
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=dpi)
+    finally:
+        pyplot.close(fig)
+    return buf.getvalue()

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from .. import __version__, atomic
 from ..errors import InputError
+from . import blocks as B
 from .context import Context, section_of
 from .sections import SECTIONS, build_sections
 
@@ -62,4 +63,31 @@ def render_report(run_dir, out_html, *, workflow: dict, provenance: dict) -> Pat
     return atomic.write_text(Path(out_html), html)
 
 
-__all__ = ["render_report", "render_html", "SECTIONS"]
+def render_discrepancy_page(folder, out_html=None) -> Path:
+    """The report page of a `frictionuq discover` output folder (default: folder/report.html):
+    the named effect, the candidates, the gap before and after (per-test RMSE, loops with the
+    old and new model, residual signatures) and what made it (version, seed, config). Written
+    atomically."""
+    import json
+    from .sections import discrepancy
+    folder = Path(folder)
+    p = folder / "discrepancy.json"
+    if not p.is_file():
+        raise InputError(f"{folder}: no discrepancy.json (run `frictionuq discover` first)")
+    d = json.loads(p.read_text())
+    ctx = Context(folder, {}, {})
+    generated = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+    prov = [B.para(f"Made by frictionuq {d.get('package_version')} from campaign "
+                   f"{d.get('campaign')} ({d.get('campaign_path')}), seed {d.get('seed')}, in "
+                   f"{d.get('seconds', float('nan')):.0f} s."),
+            B.pre(json.dumps(d.get("config", {}), indent=2))]
+    sections = [{"id": "discrepancy", "title": "Discrepancy: the missing effect",
+                 "blocks": discrepancy.build(ctx, folder)},
+                {"id": "provenance", "title": "Provenance", "blocks": prov}]
+    html = _env().get_template(TEMPLATE).render(
+        title=f"frictionuq discover: {d.get('campaign')}", description="", run_dir=str(folder),
+        generated=generated, version=__version__, sections=sections, alerts=[])
+    return atomic.write_text(Path(out_html) if out_html else folder / "report.html", html)
+
+
+__all__ = ["render_report", "render_html", "render_discrepancy_page", "SECTIONS"]

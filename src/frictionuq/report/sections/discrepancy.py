@@ -9,8 +9,11 @@ from .. import blocks as B
 from ..tables import num, table
 
 
-def build(ctx) -> list[dict]:
-    p = ctx.run_dir / "discrepancy" / "discrepancy.json"
+def build(ctx, folder=None) -> list[dict]:
+    """Blocks of the section from `folder` (default: the run's discrepancy/ folder), the output
+    folder of `frictionuq discover`."""
+    folder = ctx.run_dir / "discrepancy" if folder is None else folder
+    p = folder / "discrepancy.json"
     if not p.is_file():
         return [B.note("The discrepancy stage was not run in this workflow ([discrepancy] enabled = "
                        "false); `frictionuq discover CAMPAIGN --out DIR` runs it on its own.")]
@@ -30,21 +33,34 @@ def build(ctx) -> list[dict]:
                                 [(n, num(s["mean"]), num(s["q2.5"]), num(s["q97.5"]), s["unit"])
                                  for n, s in d["effect_parameters"].items()],
                                 caption="the named effect's parameters (MCMC refit)")))
-    out.extend(diagnostics_blocks(ctx, d))
+    out.extend(gap_blocks(folder, d))
     out.append(B.note("Decision rule: " + d.get("decision_rule", "")))
     return out
 
 
-def diagnostics_blocks(ctx, d: dict) -> list[dict]:
-    """Residual signatures before (baseline) and after (with the named effect), per test."""
+def gap_blocks(folder, d: dict) -> list[dict]:
+    """The gap before (baseline) and after (with the named effect), per test: RMSE and the views
+    with significant residual structure, the loops of both models over the data, the residual
+    signatures."""
     out = []
-    rows = [(g["test"], g["model"], ", ".join(g["significant_views"]) or "none")
-            for g in d.get("diagnostics", [])]
+    diags = d.get("diagnostics", [])
+    rows = [(g["test"], g["model"], num(g["rmse"]) if "rmse" in g else "-",
+             ", ".join(g["significant_views"]) or "none") for g in diags]
     if rows:
-        out.append(B.html(table(["test", "model", "views with significant structure (Holm, 1 %)"],
-                                rows, caption="residual diagnostics before and after")))
-    for g in d.get("diagnostics", []):
-        p = ctx.run_dir / "discrepancy" / g["figure"]
+        out.append(B.html(table(["test", "model", "RMSE at its MAP (N)",
+                                 "views with significant structure (Holm, 1 %)"],
+                                rows, caption="the gap before and after, per test")))
+    seen = set()
+    for g in diags:
+        name = g.get("loop_figure")
+        if name and name not in seen and (folder / name).is_file():
+            seen.add(name)
+            out.append(B.figure((folder / name).read_bytes(), f"loops {g['test']}",
+                                f"{g['test']}: measured force (grey) against displacement with the "
+                                "baseline and the model with the named effect, and their residuals "
+                                "against time (RMSE in the legend)"))
+    for g in diags:
+        p = folder / g["figure"]
         if p.is_file():
             out.append(B.figure(p.read_bytes(), f"residuals {g['test']} {g['model']}",
                                 f"{g['test']}, {g['model']}: binned residual means (N) per view, "
