@@ -101,6 +101,9 @@ def oracle_simulate(t, x, params: dict, effects: dict | None = None, model: str 
     eps_ecc, l_ecc, psi = E_["eps_ecc"], E_["l_ecc"], E_["psi_ecc"]
     beta_rate, v_ref = E_["beta_rate"], E_["v_ref"]
     beta_app = E_["beta_app"]
+    a_to = {1: E_["a_to_fwd"], -1: E_["a_to_bwd"]}
+    l_to = E_["l_to"]
+    to_on = "takeup_overshoot" in on and model == "three_stage"
     if "applied_tracking" in on:
         if applied is None:
             raise ValueError("applied_tracking needs the applied signal")
@@ -125,9 +128,9 @@ def oracle_simulate(t, x, params: dict, effects: dict | None = None, model: str 
             return -1
         return d
 
-    def factor(k, vel, E):
+    def factor(k, vel, E, h_to=1.0):
         """Product of the multiplicative factors on g at sample k (velocity vel, energy E)."""
-        f = 1.0
+        f = h_to
         if "thermal_fade" in on:
             f *= 1.0 - kappa * (1.0 - math.exp(-E / e_fade))
         if "eccentricity" in on:
@@ -150,6 +153,8 @@ def oracle_simulate(t, x, params: dict, effects: dict | None = None, model: str 
     x_ext = x_r = x[0]
     F_r = 0.0
     released = False          # z_release == "latched": s has reached d2+d3+5w since the reversal
+    slipping = False          # takeup_overshoot: slip has started since the reversal, at s = s_b
+    s_b = 0.0
     z = 0.0
     E = 0.0
     F = [0.0] * n
@@ -166,10 +171,14 @@ def oracle_simulate(t, x, params: dict, effects: dict | None = None, model: str 
                 d = -d
                 x_ext = x[k]
                 released = False
+                slipping = False
         vk = v[k]
-        fac = factor(k, vk, E)
-        gv = g_of(sgn_dir(vk, d), vk, fac)
         s = max(0.0, d * (x[k] - x_r))
+        h_to = 1.0
+        if to_on:
+            h_to = 1.0 + a_to[d] if not slipping else 1.0 + a_to[d] * math.exp(-max(0.0, s - s_b) / l_to)
+        fac = factor(k, vk, E, h_to)
+        gv = g_of(sgn_dir(vk, d), vk, fac)
         Fb = A = Cb = 0.0
         z_set = False
         if model == "three_stage":
@@ -185,6 +194,9 @@ def oracle_simulate(t, x, params: dict, effects: dict | None = None, model: str 
             L = stage2 + k3 * spd
             g_d = g_of(d, vk, fac)
             Fb = min(L, g_d)
+            if to_on and not slipping and (L >= g_d or s >= d2 + d3):
+                slipping = True
+                s_b = s
             if s >= d2 + d3 + 5.0 * w and z_release == "latched":
                 released = True
             if backlash and s < d2 + d3 + 5.0 * w and not released and _bug != "no_z_set":
@@ -214,7 +226,7 @@ def oracle_simulate(t, x, params: dict, effects: dict | None = None, model: str 
         if k < n - 1:
             uk = u[k]
             if uk != 0.0:
-                fac_u = factor(k, uk, E)
+                fac_u = factor(k, uk, E, h_to)
                 du = 1 if uk > 0 else -1
                 gu = g_of(du, uk, fac_u)
                 if gu > 0.0:

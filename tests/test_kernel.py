@@ -72,6 +72,9 @@ def draw_effect(rng, name, p):
         return {"beta_rate": rng.uniform(0.05, 2.0), "v_ref": loguniform(rng, 1e-4, 1e-1)}
     if name == "applied_tracking":
         return {"beta_app": rng.uniform(0.1, 1.5)}
+    if name == "takeup_overshoot":
+        return {"a_to_fwd": rng.uniform(-0.9, 2.0), "a_to_bwd": rng.uniform(-0.9, 2.0),
+                "l_to": loguniform(rng, 1e-4, 1e-2)}
     raise KeyError(name)
 
 

@@ -7,7 +7,7 @@ numba's on-disk cache keys on the file that holds a jitted function.
 Parameter vector layout (see params.VECTOR_NAMES):
     0 fc_fwd 1 fc_bwd 2 fs_fwd 3 fs_bwd 4 v_s 5 sigma0 6 sigma1 7 sigma2 8 k2 9 d2 10 k3 11 d3 12 w
     13 p2 14 kappa 15 e_fade 16 a_hump 17 l_hump 18 eps_ecc 19 l_ecc 20 psi_ecc 21 beta_rate
-    22 v_ref 23 beta_app
+    22 v_ref 23 beta_app 24 a_to_fwd 25 a_to_bwd 26 l_to
 
 Speed: the transcendental functions are the cost, so the kernel skips those that cannot change
 the result in double precision:
@@ -22,8 +22,13 @@ Skipping changes the result by rounding only (relative ~1e-15), never by an appr
 Choices where the spec is silent (documented in docs/model-choices.md):
   * `reversal_hump` scales with the *parameter* fc of direction d (not a faded value);
   * `rate_strengthening` in the z update uses the step velocity |u| (g(u) is g of u);
-  * the state-dependent factors of the z update (fade, eccentricity, applied tracking) are those
-    of the step's start sample k.
+  * the state-dependent factors of the z update (fade, eccentricity, applied tracking, take-up
+    overshoot) are those of the step's start sample k;
+  * `takeup_overshoot` (not in the spec's library; docs/model-choices.md, "Effects beyond the
+    spec") is a factor on g of direction d: h = 1 + a_d until slip starts after a reversal (the
+    first sample where the backlash line reaches the cap g_d*h, or s >= d2 + d3), then
+    h = 1 + a_d exp(-(s - s_b)/l_to), s_b the travel at that sample. 3-stage model only (like
+    stage2_nonlinear, it is refused with the LuGre model).
 """
 from __future__ import annotations
 
@@ -32,7 +37,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-NPARAM = 24
+NPARAM = 27
 THREE_STAGE = 0
 LUGRE = 1
 
@@ -130,6 +135,7 @@ def simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, F):
     k2 = P[8]; d2 = P[9]; k3 = P[10]; d3 = P[11]; w = P[12]
     p2 = P[13]; kappa = P[14]; e_fade = P[15]; a_h = P[16]; l_h = P[17]
     e_ecc = P[18]; l_ecc = P[19]; psi = P[20]; b_rate = P[21]; v_ref = P[22]; b_app = P[23]
+    a_to_f = P[24]; a_to_b = P[25]; l_to = P[26]
 
     # a_sig is None when every effect is off: numba then compiles a specialisation in which all
     # effect code below is dead and removed
@@ -139,6 +145,7 @@ def simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, F):
     use_ecc = False
     use_rate = False
     use_app = False
+    use_to = False
     if a_sig is not None:
         use_p2 = p2 != 1.0 and d2 > 0.0
         use_fade = kappa != 0.0
@@ -146,7 +153,8 @@ def simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, F):
         use_ecc = e_ecc != 0.0
         use_rate = b_rate != 0.0
         use_app = b_app != 0.0 and a_sig.shape[0] == n
-    use_fac = use_fade or use_ecc or use_rate or use_app
+        use_to = (a_to_f != 0.0 or a_to_b != 0.0) and model == THREE_STAGE
+    use_fac = use_fade or use_ecc or use_rate or use_app or use_to
 
     thr_f = _skip_threshold(fc_f, fs_f)
     thr_b = _skip_threshold(fc_b, fs_b)
@@ -168,6 +176,9 @@ def simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, F):
     a_sat = 40.0 * w    # tanh(s/2w) == 1.0 beyond
     ecc_k = 2.0 * math.pi / l_ecc
     inv_a_med = 1.0 / a_med
+    s_tu = d2 + d3                  # take-up overshoot: slip starts at the latest here
+    inv_l_to = 1.0 / l_to
+    x_to = 40.0 * l_to              # exp(-40) * |a| < half an ulp of 1 for |a| <= 5: h == 1.0
 
     # initial state
     d = 1.0
@@ -183,6 +194,10 @@ def simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, F):
     # z is released to evolve freely once s has reached s_free after a reversal, and stays
     # released until the next reversal (with eps > 0, s can fall back inside the dead band)
     released = not backlash
+    # take-up overshoot: whether the interface slips since the last reversal, and the travel
+    # s_b at which it started to (latched until the next reversal, like `released`)
+    slipping = False
+    s_b = 0.0
 
     for k in range(n):
         xk = x[k]
@@ -196,8 +211,14 @@ def simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, F):
                 d = -d
                 x_ext = xk
                 released = not backlash
+                slipping = False
         vk = v[k]
         vabs = abs(vk)
+        s = d * (xk - x_r)
+        if s < 0.0:
+            s = 0.0
+        if s >= s_free:
+            released = True
         # -- multiplicative factors on g at this sample (the rate factor depends on the velocity)
         fac0 = 1.0
         fac_v = 1.0
@@ -209,15 +230,19 @@ def simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, F):
             if use_app:
                 fa = 1.0 + b_app * (a_sig[k] * inv_a_med - 1.0)
                 fac0 *= fa if fa > 0.0 else 0.0
+            if use_to:
+                a_to = a_to_f if d > 0.0 else a_to_b
+                if not slipping:
+                    fac0 *= 1.0 + a_to
+                else:
+                    xs = s - s_b
+                    if xs <= 0.0:
+                        fac0 *= 1.0 + a_to
+                    elif xs < x_to:
+                        fac0 *= 1.0 + a_to * math.exp(-xs * inv_l_to)
             fac_v = fac0
             if use_rate:
                 fac_v = fac0 * (1.0 + b_rate * math.log1p(vabs / v_ref))
-
-        s = d * (xk - x_r)
-        if s < 0.0:
-            s = 0.0
-        if s >= s_free:
-            released = True
 
         # -- g of the sample velocity's direction (d when v == 0), and a(v) = s0|v|/g
         fwd = vk > 0.0 or (vk == 0.0 and d > 0.0)
@@ -259,6 +284,9 @@ def simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, F):
             else:
                 L = k2 * q + k3 * sp2
             Fb = L if L < gd else gd
+            if use_to and not slipping and (L >= gd or s >= s_tu):
+                slipping = True
+                s_b = s
             if not released:
                 z = d * Fb * inv_s0
             if gv > 0.0:
@@ -270,6 +298,9 @@ def simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, F):
             Cb = _logistic(s - d2 - d3, inv_w)
             Fk = (1.0 - A) * F_r + A * ((1.0 - Cb) * d * Fb + Cb * F1)
         else:
+            if use_to and not slipping:     # s >= s_sat >= d2 + d3: slip has started
+                slipping = True
+                s_b = s
             if gv > 0.0:
                 Fk = s0 * z + s1 * (vk - av * z) + s2 * vk
             else:

@@ -78,6 +78,16 @@ _EFFECT_PARAMS = [
           "rate_strengthening", default=1e-2, log_scale=True),
     Param("beta_app", "1", 0.0, 1.5, "how strongly friction follows the measured applied force",
           "effect", "applied_tracking", neutral=0.0, default=0.0),
+    # not in the spec's library (docs/model-choices.md, "Effects beyond the spec"); appended
+    # last so that the kernel vector's earlier slots keep their positions
+    Param("a_to_fwd", "1", -0.95, 5.0, "friction overshoot (negative: undershoot) at the take-up "
+          "of a forward half-cycle, relative to the friction level", "effect", "takeup_overshoot",
+          neutral=0.0, default=0.0),
+    Param("a_to_bwd", "1", -0.95, 5.0, "friction overshoot (negative: undershoot) at the take-up "
+          "of a backward half-cycle, relative to the friction level", "effect", "takeup_overshoot",
+          neutral=0.0, default=0.0),
+    Param("l_to", "m", 1e-6, 0.2, "slip distance over which the take-up overshoot decays", "effect",
+          "takeup_overshoot", default=3e-3, log_scale=True),
 ]
 
 BASE_NAMES: tuple[str, ...] = tuple(p.name for p in _BASE)
@@ -96,7 +106,7 @@ for _p in _EFFECT_PARAMS:
 #: effects that need the record's measured applied-force signal
 NEEDS_APPLIED = frozenset({"applied_tracking"})
 #: effects that only make sense with the backlash stages
-NEEDS_BACKLASH = frozenset({"stage2_nonlinear"})
+NEEDS_BACKLASH = frozenset({"stage2_nonlinear", "takeup_overshoot"})
 
 MODELS = ("three_stage", "lugre")
 

@@ -46,6 +46,8 @@ def draw_effect(effect: str | None, rng, amp: float, v_max: float, energy: float
                          "psi_ecc": float(u(-3.0, 3.0))},
         "rate_strengthening": {"beta_rate": float(u(0.2, 0.4)), "v_ref": float(u(0.05, 0.2) * v_max)},
         "applied_tracking": {"beta_app": float(u(0.6, 1.0))},
+        "takeup_overshoot": {"a_to_fwd": float(u(0.3, 0.6)), "a_to_bwd": float(u(-0.25, 0.25)),
+                             "l_to": float(u(0.08, 0.2) * amp)},
     }
     return table[effect]
 

@@ -168,6 +168,10 @@ EFFECT_PRIORS = {
     "rate_strengthening": lambda s: [_u("beta_rate", 0.0, 1.0),
                                      _lu("v_ref", 1e-3 * max(s.v_max, 1e-9), 1.0 * max(s.v_max, 1e-9))],
     "applied_tracking": lambda s: [_u("beta_app", 0.0, 1.5)],
+    # the decay length's floor, 0.04 amplitude, is about one fitted sample of travel: with a
+    # floor of 0.01 amplitude a fit of one real 1 Hz test put a 0.3 mm spike on the take-up
+    "takeup_overshoot": lambda s: [_u("a_to_fwd", -0.6, 2.0), _u("a_to_bwd", -0.6, 2.0),
+                                   _lu("l_to", 0.04 * s.amp, 0.5 * s.amp)],
 }
 
 
