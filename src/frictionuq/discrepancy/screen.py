@@ -23,14 +23,20 @@ K + 1 MCMC runs, which is what makes screening six candidates fast. The named ef
 refitted by MCMC (discover.py), which gives its parameters with intervals.
 
 Decision rule (guards against false positives): the best candidate by ELPD gain is named only if
-  (a) it improves every held-out unit by more than MIN_UNIT_GAIN = 5 nats (a likelihood ratio of
-      e^5 ~ 150 on data the candidate never saw; a spurious extra parameter fitted to noise loses
-      held-out density, so this fails on clean data), and
-  (b) its total gain exceeds MIN_GAIN = 10 nats and, with 5 or more held-out units, 2 SE (with
-      K < 5 units the SE has K - 1 degrees of freedom and says little; (a) is then the guard),
+  (a) it improves the held-out units by more than MIN_UNIT_GAIN = 5 nats each (a likelihood
+      ratio of e^5 ~ 150 on data the candidate never saw), all of them when there are one or two
+      units, all but one when there are three or more (an effect can be invisible in one test:
+      a thermal fade in a short replay that dissipates little energy), and it loses no unit more
+      than MAX_UNIT_LOSS = 5 nats (a spurious parameter fitted to noise in some tests loses
+      density on the others);
+  (b) its total gain exceeds MIN_GAIN = 20 nats and, with 5 or more held-out units, 2 SE (with
+      K < 5 units the SE has K - 1 degrees of freedom and says little; (a) is then the guard);
   (c) among candidates passing (a)-(b) whose gain is within 2 SE of the best (paired), the one
       with the fewest parameters is named.
-Otherwise the answer is "none".
+Otherwise the answer is "none". Calibration on clean campaigns (benchmarks/bench_discover.py
+--effects none, seeds 1-5, both devices, short records): the best candidate's gains reached 67.7
+nats on one held-out test (a baseline fold's optimiser landing lower) but never two tests above 5
+nats, so (a) said "none" on all ten (and so would it with MIN_GAIN at 10).
 """
 from __future__ import annotations
 
@@ -47,8 +53,9 @@ from ..infer.fit import FitConfig, FitSpec, prepare
 from ..infer.likelihood import LogPosterior, records_from_tests
 from ..infer.optimize import coarsened, find_map, least_squares_fit, whitening
 
-MIN_GAIN = 10.0
+MIN_GAIN = 20.0
 MIN_UNIT_GAIN = 5.0
+MAX_UNIT_LOSS = 5.0
 MIN_UNITS_FOR_SE = 5
 N_EFFECT_STARTS = 12
 N_BLOCKS = 3
@@ -205,9 +212,12 @@ def rank(levels: list[dict]) -> list[dict]:
 
 
 def _passes(r) -> bool:
-    k = len(r["gain_per_unit"])
+    g = np.asarray(r["gain_per_unit"], float)
+    k = g.size
+    need = k if k <= 2 else k - 1
     se_ok = k < MIN_UNITS_FOR_SE or r["elpd_gain"] > 2 * r["elpd_gain_se"]
-    return r["min_unit_gain"] > MIN_UNIT_GAIN and r["elpd_gain"] > MIN_GAIN and se_ok
+    return (int(np.sum(g > MIN_UNIT_GAIN)) >= need and float(g.min()) > -MAX_UNIT_LOSS
+            and r["elpd_gain"] > MIN_GAIN and se_ok)
 
 
 def decide(ranked: list[dict], levels: list[dict] | None = None) -> tuple[str, str]:
@@ -217,10 +227,11 @@ def decide(ranked: list[dict], levels: list[dict] | None = None) -> tuple[str, s
     ok = [r for r in ranked if _passes(r)]
     if not ok:
         b = ranked[0]
-        return "none", (f"no candidate improves every held-out unit by > {MIN_UNIT_GAIN:g} nats with "
-                        f"a total gain > {MIN_GAIN:g} nats (best: {b['effect']}, gain "
-                        f"{b['elpd_gain']:.1f} +- {b['elpd_gain_se']:.1f}, worst unit "
-                        f"{b['min_unit_gain']:.1f})")
+        g = ", ".join(f"{v:.1f}" for v in b["gain_per_unit"])
+        return "none", (f"no candidate improves the held-out units by > {MIN_UNIT_GAIN:g} nats (all "
+                        f"but one of 3 or more), loses none by > {MAX_UNIT_LOSS:g} and gains > "
+                        f"{MIN_GAIN:g} nats in total (best: {b['effect']}, gain "
+                        f"{b['elpd_gain']:.1f} +- {b['elpd_gain_se']:.1f}, per unit {g})")
     best = ok[0]
     close = []
     for r in ok[1:]:
@@ -230,7 +241,8 @@ def decide(ranked: list[dict], levels: list[dict] | None = None) -> tuple[str, s
             close.append(r)
     simpler = min([best] + close, key=lambda r: (r["n_params"], -r["elpd_gain"]))
     why = (f"{simpler['effect']}: held-out gain {simpler['elpd_gain']:.1f} +- "
-           f"{simpler['elpd_gain_se']:.1f} nats, every held-out unit improved by > {MIN_UNIT_GAIN:g}")
+           f"{simpler['elpd_gain_se']:.1f} nats (per held-out unit: "
+           + ", ".join(f"{v:.1f}" for v in simpler["gain_per_unit"]) + ")")
     if simpler is not best:
         why += f" (within 2 SE of {best['effect']}, fewer parameters)"
     return simpler["effect"], why
