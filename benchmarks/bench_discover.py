@@ -4,6 +4,7 @@ paper devices, one per effect of the library plus campaigns with nothing hidden,
 wall time, then the hit rate and false-alarm count, in one run.
 
     .venv/bin/python benchmarks/bench_discover.py [--full] [--refit] [--seeds 1 2] [--devices brfd mfd]
+        [--effects none eccentricity ...] [--extra-effects takeup_overshoot] [--verbose]
 
 --full: full-length records (two harmonics of ~5,000 samples and a Kobe replay, the issue's speed
 case); default: the short CI campaigns. --refit: also the MCMC refit with the named effect
@@ -29,7 +30,11 @@ def main(argv=None) -> int:
     ap.add_argument("--refit", action="store_true")
     ap.add_argument("--seeds", type=int, nargs="+", default=[11])
     ap.add_argument("--devices", nargs="+", default=["brfd", "mfd"])
-    ap.add_argument("--effects", nargs="+", default=[None] + list(P.EFFECTS))
+    ap.add_argument("--effects", nargs="+",
+                    default=[None] + [e for e in P.EFFECTS if e not in P.BEYOND_SPEC],
+                    help="hidden effects (none: nothing hidden); default: none and the spec's library")
+    ap.add_argument("--extra-effects", nargs="*", default=[],
+                    help="effects beyond the spec to screen as candidates too (takeup_overshoot)")
     ap.add_argument("--verbose", action="store_true", help="also the top two candidates' gain per "
                     "held-out unit and the decision's reason")
     a = ap.parse_args(argv)
@@ -43,7 +48,8 @@ def main(argv=None) -> int:
                     d = Path(tmp) / f"{dev}-{eff}-{seed}"
                     ans = hidden_campaign(d / "c", dev, eff, seed=seed, short=not a.full)
                     t0 = time.perf_counter()
-                    doc = discover(d / "c", d / "out", cfg, seed=1, refit=a.refit)
+                    doc = discover(d / "c", d / "out", cfg, seed=1, refit=a.refit,
+                                   extra_effects=tuple(a.extra_effects))
                     secs = time.perf_counter() - t0
                     row = {"device": dev, "hidden": ans["effect"], "named": doc["named_effect"],
                            "seconds": secs, "rmse_before": doc["rmse_before"],

@@ -36,19 +36,34 @@ def test_decision_rule():
     assert screen.decide([_row("reversal_hump", [0.1, 0.1, 67.7])])[0] == "none"
     # two tests improved but a third one made worse: not named
     assert screen.decide([_row("eccentricity", [40.0, 30.0, -8.0], 3)])[0] == "none"
+    # the best explanation fails the rule: a weaker one that passes is not named
+    name, why = screen.decide([_row("thermal_fade", [152.0, 95.5, -22.3]),
+                               _row("reversal_hump", [3.1, 6.8, 18.8])])
+    assert name == "none" and "weaker" in why
     # with two tests, both must improve
     assert screen.decide([_row("reversal_hump", [41.5, 3.1])])[0] == "none"
     assert screen.decide([_row("reversal_hump", [41.5, 6.1])])[0] == "reversal_hump"
     # small gains everywhere (a parameter fitted to noise): not named
     assert screen.decide([_row("rate_strengthening", [3.0, 4.0, 2.0])])[0] == "none"
-    # two candidates within 2 SE of each other: the one with fewer parameters
-    name, why = screen.decide([_row("eccentricity", [110.0, 210.0, 300.0], 3),
-                               _row("reversal_hump", [100.0, 220.0, 280.0], 2)])
+    # two candidates within 2 SE of each other (5+ units): the one with fewer parameters
+    name, why = screen.decide([_row("eccentricity", [110.0, 210.0, 300.0, 250.0, 190.0], 3),
+                               _row("reversal_hump", [100.0, 220.0, 280.0, 240.0, 200.0], 2)])
     assert name == "reversal_hump" and "fewer parameters" in why
+    # with 3 units the paired SE says little: the best is named
+    assert screen.decide([_row("takeup_overshoot", [188.7, 81.9, 876.8], 3),
+                          _row("applied_tracking", [6.1, 11.3, 117.9], 1)])[0] == "takeup_overshoot"
     # with 5+ units the SE counts too: a gain carried by one unit is not enough
     assert screen.decide([_row("thermal_fade", [120.0, 110.0, 130.0, 125.0, 115.0])])[0] == "thermal_fade"
     assert screen.decide([_row("thermal_fade", [400.0, 6.0, 6.0, 7.0, 10.0])])[0] == "none"
     assert screen.decide([])[0] == "none"
+
+
+def test_candidates_are_the_spec_library_unless_asked(tmp_path):
+    hidden_campaign(tmp_path / "c", "mfd", None, seed=2, short=True)
+    tests = load_campaign(tmp_path / "c").tests
+    assert screen.candidates(tests) == ["stage2_nonlinear", "thermal_fade", "reversal_hump",
+                                        "eccentricity", "rate_strengthening", "applied_tracking"]
+    assert screen.candidates(tests, ("takeup_overshoot",))[-1] == "takeup_overshoot"
 
 
 def test_hidden_campaign_keeps_its_answer_out(tmp_path):
@@ -72,15 +87,17 @@ def test_hidden_campaign_keeps_its_answer_out(tmp_path):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("device, effect, seed, refit", [
-    ("brfd", "reversal_hump", 7, True),
+    ("brfd", "reversal_hump", 7, False),
     ("brfd", None, 7, False),
-    ("mfd", "thermal_fade", 11, False),
+    ("mfd", "thermal_fade", 11, True),
 ])
 def test_discover_names_the_hidden_effect_or_none(tmp_path, device, effect, seed, refit):
     """A short 3-test campaign (two harmonics, a Kobe replay) of a paper device with one hidden
     effect at random realistic parameters, or none: the screening names it, or says none; with
     the MCMC refit, the effect's parameters are inside their 95 % intervals and rmse_after is
-    within 1.2 times the generator's noise sd. Fixed seeds, so each case either always passes or
+    within 1.2 times the generator's noise sd (checked on the MFD: on BRFD records decimated to
+    100 samples per cycle even the generator's truth misfits its steep take-up, RMSE ~1.35 noise
+    sd on clean campaigns, so that bound cannot hold there; docs/model-choices.md). Fixed seeds, so each case either always passes or
     always fails; the false-alarm guard is the decision rule (screen.py; no false alarm on the
     clean campaigns of benchmarks/bench_discover.py); the larger set (every effect, both
     devices, refits) is that benchmark."""

@@ -127,6 +127,7 @@ def _cmd_discover(a):
     cfg = FitConfig(likelihood=a.likelihood, sampler=samp, tests=tuple(a.test) if a.test else None,
                     kinds=tuple(a.kind) if a.kind else None)
     d = discover(a.campaign, a.out, cfg, seed=a.seed, refit=not a.no_refit,
+                 extra_effects=tuple(a.extra_effect or ()),
                  log=lambda m: print(m, file=sys.stderr))
     print(f"{'candidate':<20}{'ELPD gain (nats)':>18}{'SE':>10}{'RMSE after (N)':>16}")
     for c in d["candidates"]:
@@ -296,6 +297,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True, help="output folder: discrepancy.json, report.html, figures, refit/")
     s.add_argument("--likelihood", choices=["iid", "ar1"], default="ar1")
     s.add_argument("--no-refit", action="store_true", help="screen and name only (no MCMC refit)")
+    s.add_argument("--extra-effect", action="append", metavar="EFFECT",
+                   help="also screen this effect beyond the spec's library (takeup_overshoot)")
     _add_selection(s, "cap on stored sampler steps of the refit")
     s.set_defaults(func=_cmd_discover)
 

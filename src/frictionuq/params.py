@@ -105,6 +105,9 @@ for _p in _EFFECT_PARAMS:
 
 #: effects that need the record's measured applied-force signal
 NEEDS_APPLIED = frozenset({"applied_tracking"})
+#: effects beyond the spec's library (docs/model-choices.md): not screened by `discover` unless
+#: asked for (takeup_overshoot mimics a reversal_hump on decimated BRFD records)
+BEYOND_SPEC = frozenset({"takeup_overshoot"})
 #: effects that only make sense with the backlash stages
 NEEDS_BACKLASH = frozenset({"stage2_nonlinear", "takeup_overshoot"})
 

@@ -22,8 +22,9 @@ the campaign's own applied unit for `applied` (e.g. lb).
                 fit's), samples_per_cycle (default: the fit's), [compare.sampler] (default: the
                 fit's)
     [report]    enabled = true, title, published = "none" | "brfd" | "mfd"
-    [discrepancy] enabled = false, refit = true, tests/kinds (default: the fit's): the
-                `frictionuq discover` stage (screen the effect library, name, refit)
+    [discrepancy] enabled = false, refit = true, tests/kinds (default: the fit's),
+                extra_effects = [] (effects beyond the spec to screen too: "takeup_overshoot"):
+                the `frictionuq discover` stage (screen the effect library, name, refit)
 """
 from __future__ import annotations
 
@@ -53,7 +54,7 @@ SECTIONS = {
     "predict": {"n_draws", "validate", "harmonic", "ground_motion"},
     "compare": {"enabled", "models", "tests", "kinds", "samples_per_cycle", "sampler"},
     "report": {"enabled", "title", "published"},
-    "discrepancy": {"enabled", "refit", "tests", "kinds"},
+    "discrepancy": {"enabled", "refit", "tests", "kinds", "extra_effects"},
 }
 HARMONIC_KEYS = {"name", "amplitude_m", "frequency_hz", "applied"}
 GROUND_KEYS = {"name", "record", "peak_m", "applied", "rate_hz"}
@@ -326,12 +327,15 @@ def load_workflow(path) -> Workflow:
                   "family": c.str_(lt, "family", "[law]", "auto", FAMILIES)}
     cfg["predict"] = _predict(c, tables["predict"])
     cfg["compare"] = _compare(c, tables["compare"])
+    from .params import BEYOND_SPEC
     dt = tables["discrepancy"]
     c.unknown(dt, SECTIONS["discrepancy"], "discrepancy")
     cfg["discrepancy"] = {"enabled": c.bool_(dt, "enabled", "[discrepancy]", False),
                           "refit": c.bool_(dt, "refit", "[discrepancy]", True),
                           "tests": c.strings(dt, "tests", "[discrepancy]"),
-                          "kinds": c.strings(dt, "kinds", "[discrepancy]", KINDS)}
+                          "kinds": c.strings(dt, "kinds", "[discrepancy]", KINDS),
+                          "extra_effects": c.strings(dt, "extra_effects", "[discrepancy]",
+                                                     tuple(sorted(BEYOND_SPEC)))}
     rt = tables["report"]
     c.unknown(rt, SECTIONS["report"], "report")
     cfg["report"] = {"enabled": c.bool_(rt, "enabled", "[report]", True),

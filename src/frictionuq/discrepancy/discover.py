@@ -85,14 +85,22 @@ def _gap(level_tests, cfg, level: dict, named: str, seed: int, fig_dir: Path, lo
 
 
 def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: int = 1,
-             effects=None, refit: bool = True, diagnostics: bool = True, log=None) -> dict:
-    """Run the workflow on a campaign; returns (and writes) the discrepancy document."""
+             effects=None, extra_effects=(), refit: bool = True, diagnostics: bool = True,
+             log=None) -> dict:
+    """Run the workflow on a campaign; returns (and writes) the discrepancy document.
+    effects: the candidates (default: screen.candidates, the spec's library); extra_effects:
+    effects beyond the spec (params.BEYOND_SPEC) to screen as well."""
     from .. import __version__
     from ..campaign import load_campaign
     log = log or (lambda m: None)
     cfg = replace(config or FitConfig(), seed=seed)
     if cfg.effects:
         raise InputError("discover: the baseline is the plain 3-stage model; do not give effects")
+    from .. import params as P
+    bad = [e for e in extra_effects if e not in P.BEYOND_SPEC]
+    if bad:
+        raise InputError(f"discover: extra effect {bad[0]!r} is not an effect beyond the spec's "
+                         f"library; known: {', '.join(sorted(P.BEYOND_SPEC))}")
     t0 = time.perf_counter()
     camp = load_campaign(campaign_path)
     out = Path(out_dir)
@@ -102,7 +110,8 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
     levels = []
     for s in specs:
         log(f"level {s.id}: screening {len(s.tests)} test(s)")
-        lv = screen.screen_level(s.tests, cfg, seed, effects=effects,
+        cands = list(effects) if effects is not None else screen.candidates(s.tests, extra_effects)
+        lv = screen.screen_level(s.tests, cfg, seed, effects=cands,
                                  log=lambda m, i=s.id: log(f"{i}: {m}"))
         lv["id"] = s.id
         levels.append(lv)
@@ -118,6 +127,7 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
                            "elpd_gain_se": r["elpd_gain_se"], "rmse_after": r["rmse_map"],
                            "gain_per_unit": r["gain_per_unit"], "n_params": r["n_params"]}
                           for r in ranked],
+           "candidates_screened": [n for n in levels[0]["models"] if n != "baseline"],
            "rmse_before": rmse_before, "rmse_after": rmse_before, "noise_scale": None,
            "effect_parameters": {}, "levels": levels,
            "units": {"rmse": "N", "noise_scale": "N", "elpd": "nats"}}

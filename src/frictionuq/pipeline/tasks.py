@@ -172,7 +172,8 @@ def _discrepancy(wf, task, log):
     _fresh_dir(d, task.key, log)
     cfg = replace(wf.fit_config(), tests=tuple(task.args["tests"]), kinds=None)
     doc = discover(Path(wf.out) / "ingest", d, cfg, seed=wf.seed,
-                   refit=wf.config["discrepancy"]["refit"], log=log)
+                   refit=wf.config["discrepancy"]["refit"],
+                   extra_effects=tuple(wf.config["discrepancy"]["extra_effects"] or ()), log=log)
     log(f"discrepancy: named effect {doc['named_effect']}")
 
 
