@@ -8,6 +8,10 @@ still run: the fits are NOT converged, which the report must say. About 20-30 s 
 """
 from __future__ import annotations
 
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")   # before numpy: see frictionuq/__init__.py
+
 from pathlib import Path
 
 import pytest
