@@ -90,6 +90,7 @@ def test_hidden_campaign_keeps_its_answer_out(tmp_path):
     ("brfd", "reversal_hump", 7, False),
     ("brfd", None, 7, False),
     ("mfd", "thermal_fade", 11, True),
+    ("mfd", "takeup_overshoot", 7, False),      # the effect beyond the spec (opt-in candidate)
 ])
 def test_discover_names_the_hidden_effect_or_none(tmp_path, device, effect, seed, refit):
     """A short 3-test campaign (two harmonics, a Kobe replay) of a paper device with one hidden
@@ -108,7 +109,8 @@ def test_discover_names_the_hidden_effect_or_none(tmp_path, device, effect, seed
     ans = hidden_campaign(tmp_path / "c", device, effect, seed=seed, short=True,
                           answer_path=tmp_path / "answer.json")
     cfg = FitConfig(samples_per_cycle=100, sampler=SamplerConfig(max_steps=3000, progress=False))
-    d = discover(tmp_path / "c", tmp_path / "out", cfg, seed=1, refit=refit)
+    extra = ("takeup_overshoot",) if effect == "takeup_overshoot" else ()
+    d = discover(tmp_path / "c", tmp_path / "out", cfg, seed=1, refit=refit, extra_effects=extra)
     assert d["named_effect"] == ans["effect"], (d["reason"], d["candidates"])
     doc = json.loads((tmp_path / "out" / "discrepancy.json").read_text())
     assert doc["named_effect"] == ans["effect"] and doc["package_version"] and doc["seed"] == 1
@@ -117,11 +119,13 @@ def test_discover_names_the_hidden_effect_or_none(tmp_path, device, effect, seed
     noise = ans["noise_sd_N"]
     if effect:
         assert doc["rmse_after"] < doc["rmse_before"]
-        # the gap shrinks in the residual diagnostics too: per test, RMSE with the effect below
-        # the baseline's, and loops of both models drawn
+        # the gap shrinks per test too (as in the decision rule, an effect may leave no trace in
+        # one test: all but one improved, none made worse by more than 5 %), loops of both drawn
         by = {(g["test"], g["model"]): g for g in doc["diagnostics"]}
+        ratios = [by[(t["id"], f"with {effect}")]["rmse"] / by[(t["id"], "baseline")]["rmse"]
+                  for t in ans["tests"]]
+        assert sum(r < 1.0 for r in ratios) >= len(ratios) - 1 and max(ratios) < 1.05, ratios
         for t in ans["tests"]:
-            assert by[(t["id"], f"with {effect}")]["rmse"] < by[(t["id"], "baseline")]["rmse"]
             assert (tmp_path / "out" / f"loops-{t['id']}.png").stat().st_size > 10_000
     if refit:
         assert doc["rmse_after"] <= 1.2 * noise, (doc["rmse_after"], noise)
