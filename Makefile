@@ -26,7 +26,7 @@ bench-fit: $(VENV)/.installed-test
 	$(PY) benchmarks/bench_fit.py
 
 bench-discover: $(VENV)/.installed-test
-	$(PY) benchmarks/bench_discover.py
+	$(PY) benchmarks/bench_discover.py --verbose
 
 install: $(VENV)/.installed
 install-test: $(VENV)/.installed-test
