@@ -121,8 +121,7 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
     rmse_before = float(np.mean([lv["models"]["baseline"]["rmse_map"] for lv in levels]))
     doc = {"package_version": __version__, "campaign": camp.name, "campaign_path": str(campaign_path),
            "seed": seed, "config": cfg.to_json(), "named_effect": named, "reason": reason,
-           "decision_rule": "screen.py: best held-out ELPD gain > max(10 nats, 2 SE), every held-out "
-                            "unit improved, simpler effect preferred within 2 SE",
+           "decision_rule": screen.RULE, "extra_effects": list(extra_effects),
            "candidates": [{"effect": r["effect"], "elpd_gain": r["elpd_gain"],
                            "elpd_gain_se": r["elpd_gain_se"], "rmse_after": r["rmse_map"],
                            "gain_per_unit": r["gain_per_unit"], "n_params": r["n_params"]}

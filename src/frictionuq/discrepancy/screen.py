@@ -62,6 +62,12 @@ MIN_UNIT_GAIN = 5.0
 MAX_UNIT_LOSS = 5.0
 MIN_UNITS_FOR_SE = 5
 N_EFFECT_STARTS = 12
+#: the decision rule in one line (recorded in discrepancy.json; the module docstring says why)
+RULE = (f"screen.py: the candidate with the largest held-out ELPD gain is named if it improves the "
+        f"held-out units by > {MIN_UNIT_GAIN:g} nats (all of 1-2, all but one of 3+), makes none "
+        f"worse by > {MAX_UNIT_LOSS:g} nats and gains > {MIN_GAIN:g} nats in total (and > 2 SE with "
+        f"{MIN_UNITS_FOR_SE}+ units); with {MIN_UNITS_FOR_SE}+ units an effect with fewer parameters "
+        "within 2 SE is preferred; otherwise none")
 N_BLOCKS = 3
 
 
