@@ -38,9 +38,9 @@ Decision rule (guards against false positives): the best candidate by ELPD gain 
       of the best (paired), the one with the fewest parameters is named (with 3 units the paired
       SE is so loose that applied_tracking, +129 nats, counted as "within 2 SE" of +1147).
 Otherwise the answer is "none". Calibration on clean campaigns (benchmarks/bench_discover.py
---effects none, seeds 1-5, both devices, short records): the best candidate's gains reached 67.7
-nats on one held-out test (a baseline fold's optimiser landing lower) but never two tests above 5
-nats, so (a) said "none" on all ten (and so would it with MIN_GAIN at 10).
+--effects none, short records, BRFD seeds 1-5 and MFD seeds 1-4): the best candidate's gains
+reached 67.7 nats on one held-out test (a baseline fold's optimiser landing lower) but never two
+tests above 5 nats, so (a) said "none" on all nine (and so would it with MIN_GAIN at 10).
 """
 from __future__ import annotations
 
