@@ -46,17 +46,13 @@ def _model_forces(level_tests, cfg, effects, map_values: dict) -> list[tuple]:
     return [(rec, lp.simulate(th, rec)[0] + off) for rec in lp.records]
 
 
-def _rmse(r) -> float:
-    return float(np.sqrt(np.mean((r - r.mean()) ** 2)))
-
-
 def _gap(level_tests, cfg, level: dict, named: str, seed: int, fig_dir: Path, log) -> list[dict]:
     """The gap before and after, per test of a level: residual diagnostics (diagnostics.diagnose)
     at the baseline's MAP and, when an effect is named, at the MAP with it (figures
     residuals-<model>-<test>.png), and the loops of both models over the data with their
     residuals (loops-<test>.png); RMSE (offset removed) of each."""
     from .diagnostics import diagnose
-    from .plots import loop_figure, residual_figure
+    from .plots import centred_rmse, loop_figure, residual_figure
     models = [("baseline", ())] + ([(f"with {named}", (named,))] if named != "none" else [])
     forces = {tag: _model_forces(level_tests, cfg, eff, level["models"][eff[0] if eff else "baseline"]["map"])
               for tag, eff in models}
@@ -71,7 +67,7 @@ def _gap(level_tests, cfg, level: dict, named: str, seed: int, fig_dir: Path, lo
                    for k in d["significant"]]
             log(f"diagnostics {tag} {rec.id}: significant structure in {', '.join(sig) or 'none'}")
             out.append({"test": rec.id, "model": tag, "figure": name, "significant_views": sig,
-                        "rmse": _rmse(rec.y - F), "diagnostics": d})
+                        "rmse": centred_rmse(rec.y - F), "diagnostics": d})
     for i, (rec, _) in enumerate(forces["baseline"]):
         name = f"loops-{rec.id}.png"
         png = loop_figure(rec.t, rec.x, rec.y, {tag: forces[tag][i][1] for tag, _ in models},

@@ -123,6 +123,12 @@ def residual_figure(diag: dict, path=None, title: str | None = None, dpi: int = 
     return data
 
 
+def centred_rmse(r) -> float:
+    """RMSE of a residual with its mean removed (the load-cell offset is not a misfit), N."""
+    r = np.asarray(r, float)
+    return float(np.sqrt(np.mean((r - r.mean()) ** 2)))
+
+
 def loop_figure(t, x, y, models: dict, title: str, dpi: int = 90) -> bytes:
     """Force-displacement loops of the data (grey points) and of each model in `models`
     ({label: force (N)}, e.g. the baseline and the model with the named effect) beside their
@@ -135,7 +141,7 @@ def loop_figure(t, x, y, models: dict, title: str, dpi: int = 90) -> bytes:
             ax1.plot(np.asarray(x) * 1e3, np.asarray(F) / 1e3, "-", lw=1.0, color=f"C{i}", label=label)
             r = np.asarray(y) - np.asarray(F)
             ax2.plot(t, r, "-", lw=0.7, color=f"C{i}", alpha=0.8,
-                     label=f"{label}: RMSE {float(np.sqrt(np.mean((r - r.mean()) ** 2))):.4g} N")
+                     label=f"{label}: RMSE {centred_rmse(r):.4g} N")
         ax1.set_xlabel("displacement x (mm)")
         ax1.set_ylabel("force F (kN)")
         ax1.set_title("force-displacement loops", fontsize=9)

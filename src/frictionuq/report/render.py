@@ -42,9 +42,14 @@ def render_html(ctx: Context, generated: str | None = None) -> str:
     generated = generated or _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
     sections = build_sections(ctx, generated)
     desc = section_of(ctx.workflow, "workflow").get("description") or ""
+    return _page(ctx.title(), desc, ctx.run_dir, generated, sections, alerts(ctx))
+
+
+def _page(title, description, run_dir, generated, sections, alert_lines) -> str:
+    """The template filled: one self-contained HTML page."""
     return _env().get_template(TEMPLATE).render(
-        title=ctx.title(), description=desc, run_dir=str(ctx.run_dir), generated=generated,
-        version=__version__, sections=sections, alerts=alerts(ctx))
+        title=title, description=description, run_dir=str(run_dir), generated=generated,
+        version=__version__, sections=sections, alerts=alert_lines)
 
 
 def render_report(run_dir, out_html, *, workflow: dict, provenance: dict) -> Path:
@@ -84,9 +89,7 @@ def render_discrepancy_page(folder, out_html=None) -> Path:
     sections = [{"id": "discrepancy", "title": "Discrepancy: the missing effect",
                  "blocks": discrepancy.build(ctx, folder)},
                 {"id": "provenance", "title": "Provenance", "blocks": prov}]
-    html = _env().get_template(TEMPLATE).render(
-        title=f"frictionuq discover: {d.get('campaign')}", description="", run_dir=str(folder),
-        generated=generated, version=__version__, sections=sections, alerts=[])
+    html = _page(f"frictionuq discover: {d.get('campaign')}", "", folder, generated, sections, [])
     return atomic.write_text(Path(out_html) if out_html else folder / "report.html", html)
 
 
