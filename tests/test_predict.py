@@ -45,12 +45,18 @@ def _campaign(root):
     for k in range(1, t.size):
         e[k] = phi * e[k - 1] + SIGMA * np.sqrt(1 - phi**2) * rng.standard_normal()
     y = simulate(t, x, TRUTH) + OFFSET + e
+    return tiny_campaign(camp, t, x, y, "kN", 0.267)
+
+
+def tiny_campaign(camp, t, x, y, applied_unit: str, applied: float):
+    """Write a one-test campaign (test h1, SI columns, 0.2 Hz harmonic) to folder camp."""
+    (camp / "tests").mkdir(parents=True, exist_ok=True)
     np.savetxt(camp / "tests/h1.csv", np.column_stack([t, x, y]), delimiter=",",
                header="time,displacement,force", comments="", fmt="%.10g")
     (camp / "campaign.toml").write_text(
         'name = "tiny"\ndevice = "BRFD"\n[units]\ntime = "s"\ndisplacement = "m"\nforce = "N"\n'
-        'applied = "kN"\n[[tests]]\nid = "h1"\nfile = "tests/h1.csv"\napplied = 0.267\n'
-        'kind = "harmonic"\nfrequency_hz = 0.2\n')
+        f'applied = "{applied_unit}"\n[[tests]]\nid = "h1"\nfile = "tests/h1.csv"\n'
+        f'applied = {applied:g}\nkind = "harmonic"\nfrequency_hz = 0.2\n')
     return camp
 
 

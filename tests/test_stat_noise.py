@@ -58,21 +58,25 @@ class _Rec:
         self.t, self.x, self.force = t, x, force
 
 
-def fit_seed(k: int, truth: dict) -> dict:
-    """Both likelihoods on one noise realisation: {lik: (m2, posterior sd, covariance)}."""
-    t = np.arange(300) / 20.0
+def fit_seed(k: int, truth: dict, noise=None, likelihoods=("ar1", "iid"), seed: int = SEED,
+             n: int = 300) -> dict:
+    """Each likelihood on one noise realisation of n samples at 20 Hz: {lik: (m2, posterior sd,
+    covariance)}. noise(rng, n, fc) draws the force noise (default: AR(1), phi PHI, marginal sd
+    NOISE_SD Fc)."""
+    t = np.arange(n) / 20.0
     x = 0.0254 * np.sin(2 * np.pi * 0.2 * t)
     fc = 0.5 * (truth["fc_fwd"] + truth["fc_bwd"])
-    rng = np.random.default_rng([SEED, k])
-    y = simulate(t, x, truth) + ar1_from_normals(rng.standard_normal(t.size), PHI, NOISE_SD * fc)
+    rng = np.random.default_rng([seed, k])
+    noise = noise or (lambda rng, n, fc: ar1_from_normals(rng.standard_normal(n), PHI, NOISE_SD * fc))
+    y = simulate(t, x, truth) + noise(rng, t.size, fc)
     scales = record_scales([_Rec(t, x, y)])
-    rec = prepare_record(f"ar1-noise-{k}", t, x, y, q=1, eps=0.0)
     out = {}
-    for lik in ("ar1", "iid"):
+    for lik in likelihoods:
+        rec = prepare_record(f"noise-{k}", t, x, y, q=1, eps=0.0)
         pri, fixed = apply_overrides(default_priors(scales, "three_stage", (), lik),
                                      {n: v for n, v in truth.items() if n not in FREE})
         sp = Space("three_stage", (), lik, pri, fixed)
-        qs = quick_sample(LogPosterior(sp, [rec], parallel=False), [SEED, k, 1], steps=STEPS)
+        qs = quick_sample(LogPosterior(sp, [rec], parallel=False), [seed, k, 1], steps=STEPS)
         d = qs.chain[BURN:].reshape(-1, sp.ndim)
         mu, C = d.mean(axis=0), np.cov(d.T)
         e = sp.to_theta({**truth, "force_offset": 0.0}) - mu

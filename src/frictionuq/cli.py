@@ -234,7 +234,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--model", choices=["three_stage", "lugre"], default="three_stage")
     s.add_argument("--effect", action="append", metavar="NAME",
                    help="add an effect of the library (repeatable)")
-    s.add_argument("--likelihood", choices=["iid", "ar1"], default="ar1")
+    s.add_argument("--likelihood", choices=["iid", "ar1", "arma"], default="ar1",
+                   help="measurement noise per test: iid, AR(1) (default) or ARMA(1,1) = AR(1) + white")
     _add_selection(s, "cap on stored sampler steps")
     s.set_defaults(func=_cmd_fit)
 

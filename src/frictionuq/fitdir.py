@@ -90,6 +90,7 @@ class FitPosterior:
     phi: np.ndarray                    # (M, T) noise lag-1 correlation at rate_hz
     rate_hz: np.ndarray                # (T,) decimated sample rate of each test's record
     tests: list[str] = field(default_factory=list)
+    theta: np.ndarray | None = None    # (T,) ARMA(1,1) MA coefficient (likelihood `arma`), else 0
 
     @property
     def size(self) -> int:
@@ -109,6 +110,7 @@ def load_posterior(fit_dir, fit_id: str) -> FitPosterior:
         free, fixed = list(space["free"]), {k: float(v) for k, v in space["fixed"].items()}
         model, effects = space["model"], tuple(space["effects"])
         rates = {r["id"]: float(r["rate_hz"]) for r in rec["records"]}
+        thetas = {r["id"]: float(r.get("noise_theta", 0.0)) for r in rec["records"]}
     except (KeyError, TypeError, ValueError) as e:
         raise InputError(f"{fdir / 'fit.json'}: not a frictionuq fit record (key {e})") from None
     try:
@@ -127,4 +129,5 @@ def load_posterior(fit_dir, fit_id: str) -> FitPosterior:
     applied = (rec.get("summary") or {}).get("applied")
     return FitPosterior(fit_id, applied, model, effects, params, fixed,
                         sig.reshape(-1, T), phi.reshape(-1, T),
-                        np.array([rates[t] for t in tests]), tests)
+                        np.array([rates[t] for t in tests]), tests,
+                        np.array([thetas[t] for t in tests]))

@@ -13,7 +13,9 @@ Given a fit output folder (`frictionuq fit`, see frictionuq.infer.fit) and an ap
   only). noise_phi was estimated at the decimated rate of each record (fit.json
   records[].rate_hz); reading the AR(1) noise as a sampled Ornstein-Uhlenbeck process, the
   correlation at the prediction's median step dt is phi ** (dt * rate_hz), the marginal sd
-  unchanged.
+  unchanged. A fit with ARMA(1,1) noise (likelihood `arma`, MA coefficient noise_theta per
+  test in fit.json) is read as AR(1) plus white noise (noisemodel.split_ar1_white): the AR(1)
+  part is converted as above, the white part keeps its sd.
 * force_offset is a load-cell artefact, not damper force: it is never in the noise-free
   ("_model") bands, and in the noisy bands only with include_offset=True (default False: the
   noisy bands then describe what a zeroed load cell would read).
@@ -77,6 +79,7 @@ class Draws:
     rate_hz: np.ndarray                # (S,)
     source: str
     fits: list[str]
+    theta: np.ndarray | None = None    # (S,) ARMA(1,1) MA coefficient at rate_hz (None: 0)
 
     @property
     def size(self) -> int:
@@ -88,7 +91,7 @@ def _take(posts: list[FitPosterior], n: int, rng) -> dict:
     offset and one test's noise per draw."""
     which = rng.integers(len(posts), size=n) if len(posts) > 1 else np.zeros(n, int)
     names = set().union(*(set(p.params) | set(p.fixed) for p in posts))
-    out = {k: np.full(n, np.nan) for k in names | {"_sigma", "_phi", "_rate"}}
+    out = {k: np.full(n, np.nan) for k in names | {"_sigma", "_phi", "_rate", "_theta"}}
     for k, p in enumerate(posts):
         sel = np.flatnonzero(which == k)
         if not sel.size:
@@ -103,6 +106,7 @@ def _take(posts: list[FitPosterior], n: int, rng) -> dict:
         out["_sigma"][sel] = p.sigma[idx, j]
         out["_phi"][sel] = p.phi[idx, j]
         out["_rate"][sel] = p.rate_hz[j]
+        out["_theta"][sel] = p.theta[j] if p.theta is not None else 0.0
     return out
 
 
@@ -125,7 +129,7 @@ def choose_draws(fit_dir, applied_si: float, n: int, rng, summary: dict | None =
             f"posterior of fits {', '.join(ids)} (equal-weight mixture)"
         params = {k: v for k, v in d.items() if not k.startswith("_") and k not in LIKELIHOOD_ONLY}
         return Draws(params, posts[0].model, posts[0].effects, d.get("force_offset", np.zeros(n)),
-                     d["_sigma"], d["_phi"], d["_rate"], src, ids)
+                     d["_sigma"], d["_phi"], d["_rate"], src, ids, d["_theta"])
     levels = fitted_levels(summary)
     lv = ", ".join(f"{v:g}" for v in levels) or "none"
     try:
@@ -148,7 +152,7 @@ def choose_draws(fit_dir, applied_si: float, n: int, rng, summary: dict | None =
         d.get("force_offset", np.zeros(n))
     params = {k: np.asarray(v, float) for k, v in params.items() if k not in LIKELIHOOD_ONLY}
     return Draws(params, model, tuple(effects), off, d["_sigma"], d["_phi"], d["_rate"],
-                 "force-dependence law", [p.id for p in posts])
+                 "force-dependence law", [p.id for p in posts], d["_theta"])
 
 
 def kernel_matrix(params: dict[str, np.ndarray], model: str, effects) -> np.ndarray:
@@ -209,13 +213,20 @@ def simulate_draws(t, x, draws: Draws, eps: float, applied_signal=None) -> np.nd
 
 
 def add_noise(F: np.ndarray, draws: Draws, dt: float, rng, include_offset: bool = False) -> np.ndarray:
-    """F plus stationary AR(1) measurement noise of each draw at step dt (module docstring)."""
+    """F plus stationary AR(1) (+ white, for `arma` fits) measurement noise of each draw at step
+    dt (module docstring)."""
+    from .infer.noisemodel import split_ar1_white
     from .noise import ar1_from_normals
-    phi = np.clip(draws.phi, 0.0, 0.999) ** (dt * draws.rate_hz)
+    phi_fit = np.clip(draws.phi, 0.0, 0.999)
+    theta = np.zeros_like(phi_fit) if draws.theta is None else np.asarray(draws.theta, float)
+    sd_ar, sd_white = split_ar1_white(draws.sigma, phi_fit, theta)
+    phi = phi_fit ** (dt * draws.rate_hz)
     out = np.array(F, dtype=float)
     for i in range(0, F.shape[0], _NOISE_CHUNK):          # bounded temporary memory
         j = min(i + _NOISE_CHUNK, F.shape[0])
-        out[i:j] += ar1_from_normals(rng.standard_normal((j - i, F.shape[1])), phi[i:j], draws.sigma[i:j])
+        out[i:j] += ar1_from_normals(rng.standard_normal((j - i, F.shape[1])), phi[i:j], sd_ar[i:j])
+        if np.any(sd_white[i:j] > 0):
+            out[i:j] += sd_white[i:j, None] * rng.standard_normal((j - i, F.shape[1]))
     if include_offset:
         out += draws.offset[:, None]
     return out
@@ -355,7 +366,7 @@ def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied
             "input": inp, "include_offset": bool(include_offset),
             "offset": "force_offset (load-cell zero) excluded from force_model_*; "
                       + ("included in" if include_offset else "excluded from") + " force_*",
-            "noise": "stationary AR(1) per draw: sigma_noise, noise_phi of one of the fit's tests "
+            "noise": "stationary AR(1) (+ white, from an arma fit's noise_theta) per draw: sigma_noise, noise_phi of one of the fit's tests "
                      + ("(same posterior draw)" if pred.draws.source != "force-dependence law" else
                         "(a posterior draw of the fitted level nearest in log force, listed in fits)")
                      + "; phi converted to the input's step as phi ** (dt * rate_hz of the fit "

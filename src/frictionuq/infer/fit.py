@@ -180,7 +180,8 @@ def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True
               "tests": [t.id for t in spec.tests], "seed": spec.config.seed,
               "config": spec.config.to_json(), "space": space.to_json(), "scales": scales.to_json(),
               "records": [{"id": r.id, "decimation": r.q, "samples": r.n, "eps_m": r.eps,
-                           "rate_hz": r.fs_raw / r.q} for r in records],
+                           "rate_hz": r.fs_raw / r.q, "noise_theta": r.noise_theta}
+                          for r in records],
               "sampler": {"steps": res.n_steps, "burn": res.burn, "thin": res.thin,
                           "burn_in_phase_steps": res.burn_in_steps,
                           "walkers": int(res.chain.shape[1]), "acceptance": res.acceptance,

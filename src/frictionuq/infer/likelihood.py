@@ -2,9 +2,10 @@
 vectorized log-posterior over a batch of walkers.
 
 data = simulated force + force_offset + noise, with noise either independent Gaussian
-(`iid`, sd sigma_noise) or a stationary AR(1) process (`ar1`, marginal sd sigma_noise, lag-1
-correlation noise_phi), per record, with sigma_noise and noise_phi integrated out
-(frictionuq.infer.noisemodel). Residuals of a friction model on a 100-1000 Hz record are strongly
+(`iid`, sd sigma_noise), a stationary AR(1) process (`ar1`, marginal sd sigma_noise, lag-1
+correlation noise_phi) or ARMA(1,1) (`arma`: AR(1) plus white noise, the record's MA
+coefficient noise_theta fixed at the MAP), per record, with sigma_noise and noise_phi integrated
+out (frictionuq.infer.noisemodel). Residuals of a friction model on a 100-1000 Hz record are strongly
 autocorrelated; the iid form then treats thousands of dependent samples as independent and makes
 posteriors far too narrow, which is why `ar1` is the default.
 
@@ -44,6 +45,7 @@ class FitRecord:
     applied_level: float = float("nan")   # nominal applied force of the test (SI)
     kind: str = "other"
     frequency_hz: float | None = None
+    noise_theta: float = 0.0     # MA coefficient of `arma` noise (noisemodel), set at the MAP
 
     @property
     def n(self) -> int:
@@ -163,7 +165,8 @@ class LogPosterior:
         off = self.space.offset(theta)
         out = np.empty((theta.shape[0], len(self.records)))
         for j, rec in enumerate(self.records):
-            out[:, j] = noisemodel.log_marginal(self.residuals(theta, rec, off), **self.noise)
+            e = noisemodel.prefilter(self.residuals(theta, rec, off), rec.noise_theta)
+            out[:, j] = noisemodel.log_marginal(e, **self.noise)
         self.n_evals += theta.shape[0]
         return out
 
@@ -189,11 +192,6 @@ class LogPosterior:
 
     def log_prob(self, theta) -> np.ndarray:
         return self(theta)[:, 0]
-
-    def pointwise(self, theta, rec: FitRecord, sigma: np.ndarray, phi: np.ndarray) -> np.ndarray:
-        """Per-sample log-likelihood terms (W, N) of one record at given noise parameters
-        (AR(1): the conditional terms e_k | e_(k-1))."""
-        return gauss_loglik(self.residuals(theta, rec), sigma, phi, pointwise=True)
 
 
 class UnboundedPosterior:

@@ -17,12 +17,25 @@ instead of sampled, which keeps the sampler's dimension at the model's:
   u = -ln(1 - phi) (dense near 1, where the conditional posterior is narrow).
 Either can instead be fixed by the configuration. After sampling, `draw_noise` draws sigma_noise
 and noise_phi from their exact conditional posterior for every posterior draw.
+
+ARMA(1,1) (`arma`): e_k - phi e_(k-1) = a_k + theta a_(k-1), the exact correlation structure of
+an AR(1) process plus white noise (the usual make-up of a load cell's noise plus a slowly
+wandering misfit; then -phi < theta <= 0). With theta given, the prefiltered residuals
+g_k = e_k - theta g_(k-1) (`prefilter`, g_0 = e_0) are AR(1) in phi with innovations a_k, and
+the transform has unit Jacobian, so everything above applies to g unchanged. theta is a
+per-record noise-shape constant estimated once at the MAP (`estimate_theta`: it is determined to
+about 1/sqrt(N), a few hundredths for records of thousands of samples, and integrating it out
+would need an O(N) filter pass per grid point); the fit records it. sigma_noise is then reported
+as the marginal sd of e (`marginal_sd`), and `split_ar1_white` turns (sigma_noise, phi, theta)
+back into the AR(1) and white components for simulating the noise at another sample rate.
 """
 from __future__ import annotations
 
 import math
 
 import numpy as np
+from scipy.optimize import minimize_scalar
+from scipy.signal import lfilter
 from scipy.special import gammaln, logsumexp
 
 PHI_MAX = 0.999
@@ -31,6 +44,56 @@ PHI_GRID = 1.0 - np.exp(-_U)
 # uniform prior on phi: weight of each grid point = d phi = (1 - phi) du, normalised by phi_max
 _LOG_W = np.log((1.0 - PHI_GRID) * (_U[1] - _U[0]) / PHI_MAX)
 _LOG_W[[0, -1]] += math.log(0.5)              # trapezoid end points
+
+
+#: range of the MA coefficient theta searched by estimate_theta: AR(1) plus white noise has
+#: -phi < theta <= 0; -0.95 keeps the prefilter's memory (about 1/(1 - |theta|) samples) short
+THETA_BOUNDS = (-0.95, 0.0)
+
+
+def prefilter(e: np.ndarray, theta: float) -> np.ndarray:
+    """g_k = e_k - theta g_(k-1) along the last axis (g_0 = e_0): ARMA(1,1) residuals with MA
+    coefficient theta -> AR(1) residuals (module docstring). theta = 0 returns e itself."""
+    if theta == 0.0:
+        return e
+    return lfilter([1.0], [1.0, float(theta)], e, axis=-1)
+
+
+def estimate_theta(e: np.ndarray, sigma_bounds: tuple[float, float], sigma_fixed: float | None = None,
+                   phi_fixed: float | None = None) -> float:
+    """The MA coefficient theta in THETA_BOUNDS maximising the ARMA(1,1) marginal likelihood of
+    residuals e (N,), sigma and phi integrated out (or fixed) as in log_marginal."""
+    e = np.asarray(e, dtype=float)[None, :]
+
+    def nll(th):
+        v = log_marginal(prefilter(e, th), "ar1", sigma_bounds, sigma_fixed, phi_fixed)[0]
+        return -v if np.isfinite(v) else 1e300
+    r = minimize_scalar(nll, bounds=THETA_BOUNDS, method="bounded", options={"xatol": 1e-4})
+    th = float(r.x)
+    # the bounded search never evaluates the end points; the AR(1) end (theta = 0) is the
+    # nested model and must win when it is at least as good
+    return 0.0 if nll(0.0) <= r.fun else th
+
+
+def marginal_sd(sigma_g, phi, theta):
+    """Marginal sd of ARMA(1,1) noise e from the marginal sd sigma_g of its AR(1) prefiltered
+    series g (innovation sd sigma_g sqrt(1 - phi^2)): var e = var g (1 + 2 phi theta + theta^2)."""
+    return np.asarray(sigma_g) * np.sqrt(1.0 + 2.0 * np.asarray(phi) * theta + np.asarray(theta) ** 2)
+
+
+def split_ar1_white(sigma, phi, theta):
+    """(sd of the AR(1) component, sd of the white component) of ARMA(1,1) noise with marginal
+    sd sigma, AR coefficient phi and MA coefficient theta, read as AR(1) + white noise: the
+    innovation variance is s_a^2 = sigma^2 (1 - phi^2) / (1 + 2 phi theta + theta^2) and the
+    white variance -theta s_a^2 / phi (clipped to [0, sigma^2]: outside -phi < theta <= 0 the
+    process has no such decomposition). theta = 0 gives (sigma, 0)."""
+    sigma, phi, theta = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (sigma, phi, theta)))
+    s2 = sigma**2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sa2 = s2 * (1.0 - phi**2) / (1.0 + 2.0 * phi * theta + theta**2)
+        w2 = np.where(theta < 0, -theta * sa2 / np.maximum(phi, 1e-12), 0.0)
+    w2 = np.clip(np.nan_to_num(w2, nan=0.0, posinf=0.0), 0.0, s2)
+    return np.sqrt(s2 - w2), np.sqrt(w2)
 
 
 def suff_stats(e: np.ndarray):

@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import least_squares, minimize
 
+from . import noisemodel
 from .likelihood import LogPosterior
 from .priors import RecordScales
 
@@ -204,15 +205,42 @@ def find_map(logpost: LogPosterior, scales: RecordScales, rng: np.random.Generat
     log(f"least squares from {len(starts)} starts (coarse log-posteriors, best first: "
         f"{[round(v, 1) for v in coarse_lps[:4]]}); refined best {best_lp:.6g}")
 
+    th_map, lp_map = polish(logpost, best, best_lp)
+    info = {"starts_log_prob_coarse": coarse_lps, "heuristic": h0}
+    if sp.likelihood == "arma":      # the records' MA coefficients at the MAP, then re-polished
+        for rnd in range(2):
+            thetas = set_noise_shape(logpost, th_map)
+            th_map, lp_map = polish(logpost, th_map, float(logpost.log_prob(th_map[None, :])[0]))
+        info["noise_theta"] = thetas
+        log(f"ARMA(1,1) noise, MA coefficient per record at the MAP: "
+            f"{[round(t, 3) for t in thetas]}; MAP log-posterior {lp_map:.6g}")
+    return th_map, lp_map, info
+
+
+def polish(logpost: LogPosterior, theta: np.ndarray, lp: float) -> tuple[np.ndarray, float]:
+    """Powell's method on the full log-posterior from theta (log-posterior lp); keeps theta if
+    that does not improve it."""
+    sp = logpost.space
+
     def nlp(x):
         v = logpost.log_prob(x[None, :])[0]
         return -v if np.isfinite(v) else 1e300
-    pol = minimize(nlp, best, method="Powell", bounds=list(zip(sp.lo, sp.hi)),
+    pol = minimize(nlp, theta, method="Powell", bounds=list(zip(sp.lo, sp.hi)),
                    options={"maxiter": 4000, "xtol": 1e-8, "ftol": 1e-12})
-    th_map = best if pol.fun > -best_lp else _clip_in(sp, pol.x)
-    lp_map = float(logpost.log_prob(th_map[None, :])[0])
-    info = {"starts_log_prob_coarse": coarse_lps, "heuristic": h0}
-    return th_map, lp_map, info
+    th = theta if pol.fun > -lp else _clip_in(sp, pol.x)
+    return th, float(logpost.log_prob(th[None, :])[0])
+
+
+def set_noise_shape(logpost: LogPosterior, theta: np.ndarray) -> list[float]:
+    """Set each record's ARMA(1,1) MA coefficient (FitRecord.noise_theta) to its estimate from
+    the residuals at theta (noisemodel.estimate_theta); returns them."""
+    kw = {k: v for k, v in logpost.noise.items() if k != "kind"}
+    out = []
+    for rec in logpost.records:
+        e = logpost.residuals(theta[None, :], rec)[0]
+        rec.noise_theta = noisemodel.estimate_theta(e, **kw)
+        out.append(rec.noise_theta)
+    return out
 
 
 def gauss_newton_cov(logpost: LogPosterior, theta: np.ndarray) -> np.ndarray:

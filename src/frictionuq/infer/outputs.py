@@ -27,7 +27,9 @@ def posterior_draws(logpost, res, rng) -> dict:
     phi = np.empty_like(sig)
     for j, rec in enumerate(logpost.records):
         e = np.concatenate([logpost.residuals(flat[k:k + 512], rec) for k in range(0, len(flat), 512)])
-        sig[:, j], phi[:, j] = noisemodel.draw_noise(e, rng=rng, **_draw_args(logpost))
+        s_g, phi[:, j] = noisemodel.draw_noise(noisemodel.prefilter(e, rec.noise_theta), rng=rng,
+                                               **_draw_args(logpost))
+        sig[:, j] = noisemodel.marginal_sd(s_g, phi[:, j], rec.noise_theta)
     out["sigma_noise"] = sig.reshape(W, D, -1)
     out["noise_phi"] = phi.reshape(W, D, -1)
     out["log_prob"] = res.log_prob.T
@@ -42,9 +44,15 @@ def _draw_args(logpost) -> dict:
     return n
 
 
-def ar1_noise(sigma, phi, n, rng) -> np.ndarray:
-    """Stationary AR(1) noise paths (S, n) with marginal sd sigma (S,) and correlation phi (S,)."""
-    return ar1_from_normals(rng.standard_normal((np.size(sigma), n)), phi, sigma)
+def ar1_noise(sigma, phi, n, rng, theta: float = 0.0) -> np.ndarray:
+    """Stationary noise paths (S, n) with marginal sd sigma (S,), AR coefficient phi (S,) and
+    ARMA(1,1) MA coefficient theta: AR(1) plus white noise (noisemodel.split_ar1_white; theta =
+    0: AR(1) alone)."""
+    sd_ar, sd_white = noisemodel.split_ar1_white(sigma, phi, theta)
+    out = ar1_from_normals(rng.standard_normal((np.size(sigma), n)), phi, sd_ar)
+    if theta != 0.0:
+        out += sd_white[:, None] * rng.standard_normal(out.shape)
+    return out
 
 
 def predictive(logpost, post, n_draws: int, rng) -> dict:
@@ -61,7 +69,7 @@ def predictive(logpost, post, n_draws: int, rng) -> dict:
     for j, rec in enumerate(logpost.records):
         F = logpost.simulate(sel, rec) + off[:, None]
         model.append(F)
-        rep.append(F + ar1_noise(sig[:, j], phi[:, j], rec.n, rng))
+        rep.append(F + ar1_noise(sig[:, j], phi[:, j], rec.n, rng, rec.noise_theta))
     return {"index": idx, "model": model, "rep": rep}
 
 
@@ -168,4 +176,6 @@ def summary_entry(spec, logpost, res, dt, post, pred) -> dict:
                                 "chain (R-hat, ESS, > 50 tau) before the step cap",
             "rmse": total, "rmse_per_test": per, "identifiability": identifiability(sp, post),
             "sampler_steps": res.n_steps, "tau_max": float(np.max(res.tau)),
-            "model_evaluations": res.n_evals}
+            "model_evaluations": res.n_evals,
+            **({"noise_theta": {r.id: r.noise_theta for r in logpost.records}}
+               if sp.likelihood == "arma" else {})}

@@ -144,7 +144,7 @@ def default_priors(s: RecordScales, model: str = "three_stage", effects: Iterabl
     pr["sigma_noise"] = _lu("sigma_noise", 0.3 * s.noise_hf, 2.0 * F)
     off_sd = max(s.asym, 0.02 * F)
     pr["force_offset"] = Prior("force_offset", "normal", -3 * off_sd, 3 * off_sd, 0.0, off_sd)
-    if likelihood == "ar1":
+    if likelihood in ("ar1", "arma"):
         pr["noise_phi"] = Prior("noise_phi", "uniform", 0.0, 0.999)
     for eff in effects:
         pr.update(effect_priors(eff, s))

@@ -4,7 +4,8 @@
 with a fixed, small budget and no convergence loop, no multi-start MAP search and no storage:
 
 1. start: the best of `n_prior` prior draws, then trust-region least squares from it
-   (optimize.least_squares_fit), the Gauss-Newton covariance there (optimize.gauss_newton_cov)
+   (optimize.least_squares_fit), with `arma` noise each record's MA coefficient there
+   (optimize.set_noise_shape), the Gauss-Newton covariance there (optimize.gauss_newton_cov)
    and the walkers' initial ball around it (sampler.initial_ball);
 2. emcee with the sampler's moves (differential evolution + snooker) in the unbounded
    coordinates (likelihood.UnboundedPosterior: logit of the prior box, Jacobian included) for
@@ -22,7 +23,7 @@ import emcee
 import numpy as np
 
 from .likelihood import LogPosterior, UnboundedPosterior
-from .optimize import gauss_newton_cov, least_squares_fit
+from .optimize import gauss_newton_cov, least_squares_fit, set_noise_shape
 from .sampler import SamplerConfig, _moves, initial_ball
 
 
@@ -45,6 +46,8 @@ def quick_sample(logpost: LogPosterior, seed, steps: int, nwalkers: int = 32,
     draws = sp.sample_prior(n_prior, rng)
     th0 = draws[int(np.argmax(logpost.log_prob(draws)))]
     th_ls, _ = least_squares_fit(logpost, th0, max_nfev=max_nfev)
+    if sp.likelihood == "arma":         # each record's MA coefficient at the optimum, as in a fit
+        set_noise_shape(logpost, th_ls)
     cov = gauss_newton_cov(logpost, th_ls)
     start = sp.to_u(initial_ball(th_ls, cov, nwalkers, rng, sp))
     sampler = emcee.EnsembleSampler(nwalkers, sp.ndim, UnboundedPosterior(logpost), vectorize=True,

@@ -16,7 +16,7 @@ import numpy as np
 from .. import params as P
 from .priors import Prior
 
-LIKELIHOODS = ("iid", "ar1")
+LIKELIHOODS = ("iid", "ar1", "arma")
 NOISE = ("sigma_noise", "noise_phi")
 #: parameters whose prior is given relative to another one: fs_* = fc_* x ratio (the ratio's
 #: prior is `Prior.ratio_of`); sampled as log(ratio), which decouples the static friction from
