@@ -129,3 +129,14 @@ def test_cli_bad_workflow_is_one_line_exit_2(tmp_path):
     r = subprocess.run([sys.executable, "-m", "frictionuq.cli", "run", str(good), "fitt"],
                        capture_output=True, text=True)
     assert r.returncode == 2 and "unknown target 'fitt'" in r.stderr
+
+
+def test_arma_likelihood_accepted_but_not_with_heldout_stages(tmp_path):
+    base = BASE.replace("[fit]", "[fit]\nlikelihood = 'arma'")
+    wf = load_workflow(_write(tmp_path, "", base))
+    assert wf.fit_config().likelihood == "arma"
+    for sec in ("compare", "discrepancy"):
+        p = _write(tmp_path, f"\n[{sec}]\nenabled = true\n", base)
+        with pytest.raises(InputError) as e:
+            load_workflow(p)
+        assert str(p) in str(e.value) and "[fit].likelihood" in str(e.value) and sec in str(e.value)

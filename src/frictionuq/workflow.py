@@ -9,7 +9,7 @@ the campaign's own applied unit for `applied` (e.g. lb).
     [workflow]  name (required), campaign (required), description, seed = 1,
                 output = "../out/<name>", report = "../reports/<name>"
     [fit]       by = "applied" | "test", model = "three_stage" | "lugre", effects = [],
-                likelihood = "ar1" | "iid", tests = [...], kinds = [...], samples_per_cycle = 400,
+                likelihood = "ar1" | "iid" | "arma", tests = [...], kinds = [...], samples_per_cycle = 400,
                 eps = "auto" | metres, n_predictive = 200, [fit.priors] (spec names: a number
                 fixes the parameter, a table {dist, lower, upper, mu, sd} sets its prior),
                 [fit.sampler] (frictionuq.infer.sampler.SamplerConfig fields)
@@ -41,7 +41,7 @@ from .errors import InputError
 
 NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]*$")
 MODELS = ("three_stage", "lugre")
-LIKELIHOODS = ("ar1", "iid")
+LIKELIHOODS = ("ar1", "iid", "arma")
 KINDS = ("harmonic", "earthquake", "other")
 FAMILIES = ("auto", "linear", "threshold", "saturating")
 PUBLISHED = ("none", "brfd", "mfd")
@@ -336,6 +336,11 @@ def load_workflow(path) -> Workflow:
                           "kinds": c.strings(dt, "kinds", "[discrepancy]", KINDS),
                           "extra_effects": c.strings(dt, "extra_effects", "[discrepancy]",
                                                      tuple(sorted(BEYOND_SPEC)))}
+    if cfg["fit"]["likelihood"] == "arma":     # held-out scoring integrates AR(1)/iid noise only
+        for sec in ("compare", "discrepancy"):
+            if cfg[sec]["enabled"]:
+                c.fail("[fit].likelihood", f"'arma' cannot be used with [{sec}] enabled (its "
+                       "held-out scoring supports ar1 and iid); use ar1 or disable the stage")
     rt = tables["report"]
     c.unknown(rt, SECTIONS["report"], "report")
     cfg["report"] = {"enabled": c.bool_(rt, "enabled", "[report]", True),

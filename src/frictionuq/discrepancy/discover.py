@@ -92,6 +92,9 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
     cfg = replace(config or FitConfig(), seed=seed)
     if cfg.effects:
         raise InputError("discover: the baseline is the plain 3-stage model; do not give effects")
+    if cfg.likelihood not in ("iid", "ar1"):
+        raise InputError(f"discover: likelihood {cfg.likelihood!r} is not supported by the "
+                         "held-out screening; use ar1 (default) or iid")
     from .. import params as P
     bad = [e for e in extra_effects if e not in P.BEYOND_SPEC]
     if bad:

@@ -202,8 +202,8 @@ def check_configs(configs: dict) -> dict:
         except ValueError as e:
             raise InputError(f"compare: model {name!r}: {e}") from None
         if cfg.likelihood not in ("iid", "ar1"):
-            raise InputError(f"compare: model {name!r}: unknown likelihood {cfg.likelihood!r}; "
-                             "use iid or ar1")
+            raise InputError(f"compare: model {name!r}: likelihood {cfg.likelihood!r} is not "
+                             "supported by the held-out comparison; use ar1 (default) or iid")
     return configs
 
 
