@@ -85,6 +85,7 @@ def test_bad_keys_and_values_name_file_key_and_problem(tmp_path, extra, where, p
 def test_bad_fit_section_values(tmp_path):
     base = BASE.replace('tests = ["sine-2Hz-36lb-0.5in"]', "")
     for fit, where in [("model = 'coulomb'", "[fit].model"), ("likelihood = 'ar2'", "[fit].likelihood"),
+                       ("simulate_at = 'fine'", "[fit].simulate_at"),
                        ("effects = ['wobble']", "[fit].effects"), ("eps = -1.0", "[fit].eps"),
                        ("kinds = ['sine']", "[fit].kinds"), ("bogus = 1", "fit.bogus")]:
         p = _write(tmp_path, "", base.replace("[fit]", "[fit]\n" + fit))
@@ -135,6 +136,9 @@ def test_arma_likelihood_accepted_but_not_with_heldout_stages(tmp_path):
     base = BASE.replace("[fit]", "[fit]\nlikelihood = 'arma'")
     wf = load_workflow(_write(tmp_path, "", base))
     assert wf.fit_config().likelihood == "arma"
+    assert wf.fit_config().simulate_at == "raw"            # the default
+    kept = load_workflow(_write(tmp_path, "", base.replace("[fit]", "[fit]\nsimulate_at = 'kept'")))
+    assert kept.fit_config().simulate_at == "kept"
     for sec in ("compare", "discrepancy"):
         p = _write(tmp_path, f"\n[{sec}]\nenabled = true\n", base)
         with pytest.raises(InputError) as e:

@@ -35,7 +35,7 @@ def _cmd_fit(a):
     samp = SamplerConfig(**({"max_steps": a.max_steps} if a.max_steps else {}))
     cfg = FitConfig(model=a.model, effects=tuple(a.effect or ()), likelihood=a.likelihood,
                     seed=a.seed, sampler=samp, tests=tuple(a.test) if a.test else None,
-                    kinds=tuple(a.kind) if a.kind else None)
+                    kinds=tuple(a.kind) if a.kind else None, simulate_at=a.simulate_at)
     s = fit_campaign(a.campaign, a.out, by=a.by, config=cfg, log=lambda m: print(m, file=sys.stderr))
     bad = [f["id"] for f in s["fits"] if not f["converged"]]
     print(f"wrote {len(s['fits'])} fit(s) of campaign {s['campaign']!r} to {a.out} (summary.json, "
@@ -236,6 +236,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="add an effect of the library (repeatable)")
     s.add_argument("--likelihood", choices=["iid", "ar1", "arma"], default="ar1",
                    help="measurement noise per test: iid, AR(1) (default) or ARMA(1,1) = AR(1) + white")
+    s.add_argument("--simulate-at", choices=["raw", "kept"], default="raw",
+                   help="decimated records: simulate at the raw rate and filter the model force like "
+                        "the data (default), or simulate on the decimated displacement (faster)")
     _add_selection(s, "cap on stored sampler steps")
     s.set_defaults(func=_cmd_fit)
 

@@ -10,7 +10,8 @@ the campaign's own applied unit for `applied` (e.g. lb).
                 output = "../out/<name>", report = "../reports/<name>"
     [fit]       by = "applied" | "test", model = "three_stage" | "lugre", effects = [],
                 likelihood = "ar1" | "iid" | "arma", tests = [...], kinds = [...], samples_per_cycle = 400,
-                eps = "auto" | metres, n_predictive = 200, [fit.priors] (spec names: a number
+                simulate_at = "raw" | "kept" (decimated records: model force filtered like the
+                data, or simulated on the decimated displacement), eps = "auto" | metres, n_predictive = 200, [fit.priors] (spec names: a number
                 fixes the parameter, a table {dist, lower, upper, mu, sd} sets its prior),
                 [fit.sampler] (frictionuq.infer.sampler.SamplerConfig fields)
     [law]       enabled = true, family = "auto" | "linear" | "threshold" | "saturating"
@@ -48,8 +49,8 @@ PUBLISHED = ("none", "brfd", "mfd")
 
 SECTIONS = {
     "workflow": {"name", "description", "campaign", "seed", "output", "report"},
-    "fit": {"by", "model", "effects", "likelihood", "tests", "kinds", "samples_per_cycle", "eps",
-            "n_predictive", "priors", "sampler"},
+    "fit": {"by", "model", "effects", "likelihood", "tests", "kinds", "samples_per_cycle",
+            "simulate_at", "eps", "n_predictive", "priors", "sampler"},
     "law": {"enabled", "family"},
     "predict": {"n_draws", "validate", "harmonic", "ground_motion"},
     "compare": {"enabled", "models", "tests", "kinds", "samples_per_cycle", "sampler"},
@@ -97,7 +98,8 @@ class Workflow:
             effects = f["effects"] if compare_model == f["model"] else []
         return FitConfig(model=model, effects=tuple(effects), likelihood=f["likelihood"],
                          priors=dict(f["priors"]) if compare_model in (None, f["model"]) else {},
-                         samples_per_cycle=spc, eps=f["eps"], n_predictive=f["n_predictive"],
+                         samples_per_cycle=spc, simulate_at=f["simulate_at"], eps=f["eps"],
+                         n_predictive=f["n_predictive"],
                          kinds=tuple(f["kinds"]) if f["kinds"] else None,
                          tests=tuple(f["tests"]) if f["tests"] else None,
                          sampler=SamplerConfig(**{**sampler, "progress": False}),
@@ -230,6 +232,7 @@ def _fit(c: _Checker, t: dict) -> dict:
             "effects": effects, "likelihood": c.str_(t, "likelihood", w, "ar1", LIKELIHOODS),
             "tests": c.strings(t, "tests", w), "kinds": c.strings(t, "kinds", w, KINDS),
             "samples_per_cycle": c.num(t, "samples_per_cycle", w, 400.0, positive=True),
+            "simulate_at": c.str_(t, "simulate_at", w, "raw", ("raw", "kept")),
             "eps": eps, "n_predictive": c.num(t, "n_predictive", w, 200, integer=True, positive=True),
             "priors": _priors(c, t.get("priors", {}), "[fit.priors]"),
             "sampler": _sampler(c, t.get("sampler", {}), "[fit.sampler]")}

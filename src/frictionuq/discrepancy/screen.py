@@ -189,7 +189,8 @@ def screen_level(level_tests, cfg: FitConfig, seed: int, effects=None, log=None)
         for train, held in folds:
             lp_tr, _ = _logpost(train, eff, cfg)
             th_k = _refit(lp_tr, th_all)
-            rec = records_from_tests([held], samples_per_cycle=cfg.samples_per_cycle, eps=cfg.eps)
+            rec = records_from_tests([held], samples_per_cycle=cfg.samples_per_cycle, eps=cfg.eps,
+                                     simulate_at=cfg.simulate_at)
             lp_h = LogPosterior(lp_tr.space, rec)
             ll_k, _ = heldout_loglik(lp_h, th_k[None, :])
             ll.append(float(ll_k[0, 0]))

@@ -21,7 +21,7 @@ import numpy as np
 from .. import atomic, params as P
 from ..errors import InputError
 from ..units import from_si
-from .likelihood import LogPosterior, records_from_tests
+from .likelihood import SIMULATE_AT, LogPosterior, records_from_tests
 from .priors import apply_overrides, default_priors, record_scales
 from .sampler import SamplerConfig, sample
 from .space import Space
@@ -36,6 +36,7 @@ class FitConfig:
     likelihood: str = "ar1"
     priors: dict = field(default_factory=dict)     # overrides; a number fixes the parameter
     samples_per_cycle: float = 400.0
+    simulate_at: str = "raw"                       # "raw" or "kept" (infer.likelihood)
     eps: float | str = "auto"
     kinds: tuple[str, ...] | None = None           # only tests of these kinds
     tests: tuple[str, ...] | None = None           # only these test ids
@@ -142,7 +143,10 @@ def prepare(spec: FitSpec):
             if missing:
                 raise InputError(f"effect {eff!r} needs the measured applied-force signal, which "
                                  f"tests {missing} do not carry (campaign column `applied`)")
-    records = records_from_tests(spec.tests, samples_per_cycle=c.samples_per_cycle, eps=c.eps)
+    if c.simulate_at not in SIMULATE_AT:
+        raise InputError(f"fit: simulate_at must be one of {', '.join(SIMULATE_AT)}, got {c.simulate_at!r}")
+    records = records_from_tests(spec.tests, samples_per_cycle=c.samples_per_cycle, eps=c.eps,
+                                 simulate_at=c.simulate_at)
     scales = record_scales([t.record for t in spec.tests])
     space = build_space(spec, scales)
     return records, scales, space, LogPosterior(space, records)
@@ -180,7 +184,9 @@ def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True
               "tests": [t.id for t in spec.tests], "seed": spec.config.seed,
               "config": spec.config.to_json(), "space": space.to_json(), "scales": scales.to_json(),
               "records": [{"id": r.id, "decimation": r.q, "samples": r.n, "eps_m": r.eps,
-                           "rate_hz": r.fs_raw / r.q, "noise_theta": r.noise_theta}
+                           "rate_hz": r.fs_raw / r.q, "noise_theta": r.noise_theta,
+                           "simulated_at_hz": r.fs_raw if r.sim_drive is not None or r.q == 1
+                           else r.fs_raw / r.q}
                           for r in records],
               "sampler": {"steps": res.n_steps, "burn": res.burn, "thin": res.thin,
                           "burn_in_phase_steps": res.burn_in_steps,

@@ -141,7 +141,9 @@ def least_squares_fit(logpost: LogPosterior, theta0: np.ndarray, max_nfev: int =
 
 
 def coarsened(logpost: LogPosterior, max_samples: int = 800) -> LogPosterior:
-    """The same log-posterior on every k-th sample of each record (for cheap searches)."""
+    """The same log-posterior on every k-th sample of each record (for cheap searches). A
+    coarsened record is simulated on its coarse displacement (sim_drive dropped): cheap, and
+    only used to rank starting points."""
     from dataclasses import replace as dc_replace
     from .. import model as M
     recs = []
@@ -152,7 +154,7 @@ def coarsened(logpost: LogPosterior, max_samples: int = 800) -> LogPosterior:
             continue
         a = None if r.applied is None else r.applied[::k]
         recs.append(dc_replace(r, t=r.t[::k], x=r.x[::k], y=r.y[::k], applied=a,
-                               drive=M.prepare(r.t[::k], r.x[::k], a)))
+                               drive=M.prepare(r.t[::k], r.x[::k], a), sim_drive=None))
     return LogPosterior(logpost.space, recs, logpost.parallel)
 
 
