@@ -215,8 +215,7 @@ def simulate_draws(t, x, draws: Draws, eps: float, applied_signal=None) -> np.nd
 def add_noise(F: np.ndarray, draws: Draws, dt: float, rng, include_offset: bool = False) -> np.ndarray:
     """F plus stationary AR(1) (+ white, for `arma` fits) measurement noise of each draw at step
     dt (module docstring)."""
-    from .infer.noisemodel import split_ar1_white
-    from .noise import ar1_from_normals
+    from .infer.noisemodel import noise_paths, split_ar1_white
     phi_fit = np.clip(draws.phi, 0.0, 0.999)
     theta = np.zeros_like(phi_fit) if draws.theta is None else np.asarray(draws.theta, float)
     sd_ar, sd_white = split_ar1_white(draws.sigma, phi_fit, theta)
@@ -224,9 +223,7 @@ def add_noise(F: np.ndarray, draws: Draws, dt: float, rng, include_offset: bool 
     out = np.array(F, dtype=float)
     for i in range(0, F.shape[0], _NOISE_CHUNK):          # bounded temporary memory
         j = min(i + _NOISE_CHUNK, F.shape[0])
-        out[i:j] += ar1_from_normals(rng.standard_normal((j - i, F.shape[1])), phi[i:j], sd_ar[i:j])
-        if np.any(sd_white[i:j] > 0):
-            out[i:j] += sd_white[i:j, None] * rng.standard_normal((j - i, F.shape[1]))
+        out[i:j] += noise_paths(sd_ar[i:j], phi[i:j], sd_white[i:j], F.shape[1], rng)
     if include_offset:
         out += draws.offset[:, None]
     return out

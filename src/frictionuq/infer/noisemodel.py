@@ -96,6 +96,18 @@ def split_ar1_white(sigma, phi, theta):
     return np.sqrt(s2 - w2), np.sqrt(w2)
 
 
+def noise_paths(sd_ar, phi, sd_white, n: int, rng: np.random.Generator) -> np.ndarray:
+    """Noise paths (S, n): stationary AR(1) of marginal sd sd_ar (S,) and coefficient phi (S,),
+    plus white noise of sd sd_white (S,) (drawn only when some is nonzero); the two components
+    of split_ar1_white."""
+    from ..noise import ar1_from_normals
+    sd_white = np.asarray(sd_white, float)
+    out = ar1_from_normals(rng.standard_normal((np.size(sd_ar), n)), phi, sd_ar)
+    if np.any(sd_white > 0):
+        out += sd_white[:, None] * rng.standard_normal(out.shape)
+    return out
+
+
 def suff_stats(e: np.ndarray):
     """Sufficient statistics of residuals e (W, N): S0, S1, S2, e0^2 (each (W,))."""
     S0 = np.einsum("ij,ij->i", e, e)

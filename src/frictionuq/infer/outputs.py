@@ -6,7 +6,6 @@ from __future__ import annotations
 import numpy as np
 
 from .. import azadapter
-from ..noise import ar1_from_normals
 from . import noisemodel
 
 WEAK_CONTRACTION = 0.5       # posterior sd / prior sd above this: "close to the prior"
@@ -49,10 +48,7 @@ def ar1_noise(sigma, phi, n, rng, theta: float = 0.0) -> np.ndarray:
     ARMA(1,1) MA coefficient theta: AR(1) plus white noise (noisemodel.split_ar1_white; theta =
     0: AR(1) alone)."""
     sd_ar, sd_white = noisemodel.split_ar1_white(sigma, phi, theta)
-    out = ar1_from_normals(rng.standard_normal((np.size(sigma), n)), phi, sd_ar)
-    if theta != 0.0:
-        out += sd_white[:, None] * rng.standard_normal(out.shape)
-    return out
+    return noisemodel.noise_paths(sd_ar, phi, sd_white, n, rng)
 
 
 def predictive(logpost, post, n_draws: int, rng) -> dict:
