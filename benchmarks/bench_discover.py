@@ -4,7 +4,8 @@ paper devices, one per effect of the library plus campaigns with nothing hidden,
 wall time, then the hit rate and false-alarm count, in one run.
 
     .venv/bin/python benchmarks/bench_discover.py [--full] [--refit] [--seeds 1 2] [--devices brfd mfd]
-        [--effects none eccentricity ...] [--extra-effects takeup_overshoot] [--verbose]
+        [--effects none eccentricity ...] [--extra-effects takeup_overshoot] [--simulate-at raw|kept]
+        [--verbose]
 
 --full: full-length records (two harmonics of ~5,000 samples and a Kobe replay, the issue's speed
 case); default: the short CI campaigns. --refit: also the MCMC refit with the named effect
@@ -35,10 +36,13 @@ def main(argv=None) -> int:
                     help="hidden effects (none: nothing hidden); default: none and the spec's library")
     ap.add_argument("--extra-effects", nargs="*", default=[],
                     help="effects beyond the spec to screen as candidates too (takeup_overshoot)")
+    ap.add_argument("--simulate-at", choices=["raw", "kept"], default="raw",
+                    help="decimated records simulated at the raw rate (default, as the fits) or on "
+                    "the kept samples (the rule's first calibration)")
     ap.add_argument("--verbose", action="store_true", help="also the top two candidates' gain per "
                     "held-out unit and the decision's reason")
     a = ap.parse_args(argv)
-    cfg = FitConfig(samples_per_cycle=100, sampler=SamplerConfig(max_steps=3000, progress=False))
+    cfg = FitConfig(samples_per_cycle=100, simulate_at=a.simulate_at, sampler=SamplerConfig(max_steps=3000, progress=False))
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for dev in a.devices:

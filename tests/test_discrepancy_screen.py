@@ -96,9 +96,7 @@ def test_discover_names_the_hidden_effect_or_none(tmp_path, device, effect, seed
     """A short 3-test campaign (two harmonics, a Kobe replay) of a paper device with one hidden
     effect at random realistic parameters, or none: the screening names it, or says none; with
     the MCMC refit, the effect's parameters are inside their 95 % intervals and rmse_after is
-    within 1.2 times the generator's noise sd (checked on the MFD: on BRFD records decimated to
-    100 samples per cycle even the generator's truth misfits its steep take-up, RMSE ~1.35 noise
-    sd on clean campaigns, so that bound cannot hold there; docs/model-choices.md). Fixed seeds, so each case either always passes or
+    within 1.2 times the generator's noise sd (the refit case is the MFD's). Fixed seeds, so each case either always passes or
     always fails; the false-alarm guard is the decision rule (screen.py; no false alarm on the
     clean campaigns of benchmarks/bench_discover.py); the larger set (every effect, both
     devices, refits) is that benchmark."""
@@ -117,6 +115,21 @@ def test_discover_names_the_hidden_effect_or_none(tmp_path, device, effect, seed
     assert {c["effect"] for c in doc["candidates"]} >= {"reversal_hump", "eccentricity", "thermal_fade",
                                                         "rate_strengthening", "stage2_nonlinear"}
     noise = ans["noise_sd_N"]
+    if effect is None:
+        # nothing hidden: the baseline's MAP (after the nested recheck, screen.nested_recheck) is
+        # as good as the least-squares fit from the generating values. Before that recheck its
+        # own search ended ~400 nats below them on this campaign (v_s at its upper bound, sigma0
+        # at its lower one) and rate_strengthening, which reached them, was named (+322 nats)
+        from frictionuq import published as pub
+        from frictionuq.infer.fit import plan
+        lv = doc["levels"][0]["models"]["baseline"]
+        tests = plan(load_campaign(tmp_path / "c"), "applied", cfg)[0].tests
+        lp, _ = screen._logpost(tests, (), cfg)
+        vals = dict(lv["map"])
+        vals.update({k: v for k, v in pub.published_params(
+            device, ans["applied"] * (1.0 if device == "brfd" else 6894.757293168)).items() if k in vals})
+        best = screen._lp(lp, screen._refit(lp, lp.space.to_theta(vals)))
+        assert lv["log_prob_map"] >= best - 5.0, (lv["log_prob_map"], best)
     if effect:
         assert doc["rmse_after"] < doc["rmse_before"]
         # the gap shrinks per test too (as in the decision rule, an effect may leave no trace in

@@ -87,15 +87,11 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
     effects: the candidates (default: screen.candidates, the spec's library); extra_effects:
     effects beyond the spec (params.BEYOND_SPEC) to screen as well.
 
-    Decimated records are simulated on their decimated displacement here (simulate_at="kept",
-    whatever the config says; discrepancy.json's config records it): the screening's decision
-    rule (screen.py) was calibrated that way. With the raw-rate simulation the fits now default to, its false-alarm
-    guard has not been recalibrated: measured once, a clean BRFD campaign (seed 7) then named
-    rate_strengthening (+322 +- 205 nats, one held-out unit +238)."""
+    Decimated records are simulated as the config says (raw rate by default, as the fits)."""
     from .. import __version__
     from ..campaign import load_campaign
     log = log or (lambda m: None)
-    cfg = replace(config or FitConfig(), seed=seed, simulate_at="kept")  # recorded in discrepancy.json
+    cfg = replace(config or FitConfig(), seed=seed)  # recorded in discrepancy.json
     if cfg.effects:
         raise InputError("discover: the baseline is the plain 3-stage model; do not give effects")
     if cfg.likelihood not in ("iid", "ar1"):
