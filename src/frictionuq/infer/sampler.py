@@ -76,6 +76,7 @@ class SamplerConfig:
     ess_min: float = 400.0
     n_random_starts: int = 6
     n_prior_starts: int = 4
+    n_global_starts: int = 2          # differential-evolution runs (optimize.global_start)
     independence: bool = True         # add the independence move fitted to the burn-in
     thin_output: int | None = None    # default: about tau/4
     progress: bool | None = None      # default: on a terminal
@@ -333,7 +334,7 @@ def sample(logpost: LogPosterior, scales: RecordScales, seed: int,
     backend, resumed = _open_backend(backend_path, nw, ndim, resume, log)
 
     theta_map, lp_map, map_info = find_map(logpost, scales, rng, cfg.n_random_starts,
-                                           cfg.n_prior_starts, log=log)
+                                           cfg.n_prior_starts, log=log, n_global=cfg.n_global_starts)
     log(f"MAP log-posterior {lp_map:.6g}")
     burn_in_steps = 0
     state = None
