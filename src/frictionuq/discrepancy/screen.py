@@ -8,19 +8,26 @@ each applied-force level of a campaign:
    least squares from the baseline's MAP with the effect's parameters at their default and at
    N_EFFECT_STARTS prior draws (cheaper: the baseline search already placed the rest);
 2. leave-one-test-out: the MAP on the other tests (warm-started from step 1), and the held-out
-   test's log-likelihood at that point, with its noise (sigma, AR(1) phi) and its load-cell offset
+   test's log predictive density under a Laplace approximation of that training fit (the mean
+   of p(y_held | theta) over N_PRED_DRAWS draws from a normal at the training MAP with its
+   Gauss-Newton covariance), with the test's noise (sigma, AR(1) phi) and its load-cell offset
    integrated out exactly as in the model comparison (infer.compare.heldout_loglik).
    A level with a single test is split into 3 contiguous blocks of whole cycles, held out in turn.
 
 The gain of a candidate on held-out unit k is g_k = ll_k(candidate) - ll_k(baseline) (nats);
 ELPD gain = sum_k g_k with SE = sqrt(K var(g_k)) (Vehtari et al. 2017), summed over levels.
 
-Why a plug-in, MAP-based held-out score and not the full posterior predictive: with thousands of
-samples per test the posterior of each training fold is concentrated far inside its prior, and
-log p(y_k | theta_MAP) differs from log E_post p(y_k | theta) by much less than the gains that
-matter here (tens to thousands of nats); it costs K + 1 optimisations per candidate instead of
-K + 1 MCMC runs, which is what makes screening six candidates fast. The named effect is then
-refitted by MCMC (discover.py), which gives its parameters with intervals.
+Why a Laplace predictive and not the plug-in log p(y_k | theta_MAP) used before (2026-11-25):
+on short campaigns two tests leave some parameters weakly determined (v_s, d3, sigma1), and the
+training MAP can sit anywhere along such a ridge; the plug-in score then swings by hundreds of
+nats on the third test. Measured on a clean BRFD campaign (seed 5, nothing hidden): the
+baseline trained on the 0.5 Hz and Kobe tests scored -2,714.6 nats on the 0.2 Hz test at its
+MAP and -2,525.5 averaged over its Laplace approximation; eccentricity, whose training fit was
+only 1.6 nats better, scored -2,520.6 at its MAP, so the plug-in gains were +194.0 / +110.8 /
+-0.3 (named: a false alarm) and the Laplace gains +1.5 / +8.0 / -0.4 (none). The full posterior
+predictive by MCMC per fold would cost K + 1 MCMC runs per candidate; the Laplace draws cost one
+batch of simulations of the held-out test. The named effect is then refitted by MCMC
+(discover.py), which gives its parameters with intervals.
 
 Decision rule (guards against false positives): the best candidate by ELPD gain is named only if
   (a) it improves the held-out units by more than MIN_UNIT_GAIN = 5 nats each (a likelihood
@@ -38,35 +45,40 @@ Decision rule (guards against false positives): the best candidate by ELPD gain 
       of the best (paired), the one with the fewest parameters is named (with 3 units the paired
       SE is so loose that applied_tracking, +129 nats, counted as "within 2 SE" of +1147).
 Otherwise the answer is "none". Calibration on clean campaigns (benchmarks/bench_discover.py
---effects none, short records, BRFD seeds 1-5 and MFD seeds 1-4), screened on the kept samples:
-the best candidate's gains reached 67.7 nats on one held-out test (a baseline fold's optimiser
-landing lower) but never two tests above 5 nats, so (a) said "none" on all nine. Screened at the
-raw rate with the nested recheck (seeds 1-5 and 7 of both devices): one false alarm in twelve,
-BRFD seed 5 named reversal_hump (+57.6 / +47.4 / -0.2 nats per held-out test), the baseline at
-the generating values' fit: MIN_UNIT_GAIN is too low for raw-rate screening (README, issue 5).
+--effects none, short records): screened on the kept samples with the plug-in score (BRFD seeds
+1-5, MFD 1-4) the best candidate's gains reached 67.7 nats on one held-out test but never two
+tests above 5 nats; screened at the raw rate with the plug-in score, BRFD seed 5 was a false
+alarm (reversal_hump +57.6 / +47.4, then eccentricity +194.0 / +110.8 once the baseline's search
+reached the generating values' fit): the plug-in swing above. Figures with the Laplace score:
+README, issue 5.
 """
 from __future__ import annotations
 
 import math
 import time
+import zlib
 from dataclasses import replace
 
 import numpy as np
+from scipy.special import logsumexp
 
 from .. import params as P
 from ..campaign import Record
 from ..infer.compare import elpd_total, heldout_loglik
 from ..infer.fit import FitConfig, FitSpec, prepare
 from ..infer.likelihood import LogPosterior, records_from_tests
-from ..infer.optimize import coarsened, find_map, least_squares_fit, whitening
+from ..infer.optimize import coarsened, find_map, gauss_newton_cov, least_squares_fit, whitening
 
 MIN_GAIN = 20.0
 MIN_UNIT_GAIN = 5.0
 MAX_UNIT_LOSS = 5.0
 MIN_UNITS_FOR_SE = 5
 N_EFFECT_STARTS = 12
+N_PRED_DRAWS = 200           # draws of the Laplace approximation per held-out score
 #: the decision rule in one line (recorded in discrepancy.json; the module docstring says why)
-RULE = (f"screen.py: the candidate with the largest held-out ELPD gain is named if it improves the "
+RULE = (f"screen.py: held-out scores are log predictive densities under a Laplace approximation of "
+        f"each training fit ({N_PRED_DRAWS} draws); the candidate with the largest held-out ELPD "
+        f"gain is named if it improves the "
         f"held-out units by > {MIN_UNIT_GAIN:g} nats (all of 1-2, all but one of 3+), makes none "
         f"worse by > {MAX_UNIT_LOSS:g} nats and gains > {MIN_GAIN:g} nats in total (and > 2 SE with "
         f"{MIN_UNITS_FOR_SE}+ units); with {MIN_UNITS_FOR_SE}+ units an effect with fewer parameters "
@@ -171,11 +183,23 @@ def heldout_units(level_tests) -> list[tuple[list, object]]:
     return [(units[:k] + units[k + 1:], units[k]) for k in range(len(units))]
 
 
-def _heldout_ll(space, held, theta, cfg: FitConfig) -> float:
+def _heldout_ll(lp_tr, held, theta, cfg: FitConfig) -> float:
+    """The held-out test's log predictive density under a Laplace approximation of the training
+    fit: log of the mean of p(y_held | theta_s) over N_PRED_DRAWS draws from a normal at the
+    training MAP theta with its Gauss-Newton covariance (infer.optimize.gauss_newton_cov, in
+    sampling coordinates, clipped to the prior box; the first draw is theta itself). The draws'
+    standard normals are seeded by the held-out unit, so every model of a unit shares them."""
+    sp = lp_tr.space
+    cov = gauss_newton_cov(lp_tr, theta)
+    z = np.random.default_rng([N_PRED_DRAWS, zlib.crc32(held.id.encode())]).standard_normal(
+        (N_PRED_DRAWS, sp.ndim))
+    z[0] = 0.0
+    m = 1e-9 * (sp.hi - sp.lo)
+    draws = np.clip(theta + z @ np.linalg.cholesky(cov).T, sp.lo + m, sp.hi - m)
     rec = records_from_tests([held], samples_per_cycle=cfg.samples_per_cycle, eps=cfg.eps,
                              simulate_at=cfg.simulate_at)
-    ll, _ = heldout_loglik(LogPosterior(space, rec), theta[None, :])
-    return float(ll[0, 0])
+    ll, _ = heldout_loglik(LogPosterior(sp, rec), draws)
+    return float(logsumexp(ll[:, 0]) - math.log(N_PRED_DRAWS))
 
 
 def _lp(logpost, theta) -> float:
@@ -206,7 +230,7 @@ def screen_level(level_tests, cfg: FitConfig, seed: int, effects=None, log=None)
             lp_tr, _ = _logpost(train, eff, cfg)
             th_k = _refit(lp_tr, th_all)
             fits.append((lp_tr, th_k, _lp(lp_tr, th_k)))
-            ll.append(_heldout_ll(lp_tr.space, held, th_k, cfg))
+            ll.append(_heldout_ll(lp_tr, held, th_k, cfg))
         key = "baseline" if name is None else name
         fold_fits[key] = fits
         full_fits[key] = (lp_all, th_all)
@@ -310,7 +334,7 @@ def _take(model, fold_fits, k, lp_tr, th, lp_k, held, cfg, changed, start, log,
         return
     fold_fits[key][k] = (lp_tr, th, lp_new)
     old = model["heldout_loglik"][k]
-    model["heldout_loglik"][k] = _heldout_ll(lp_tr.space, held, th, cfg)
+    model["heldout_loglik"][k] = _heldout_ll(lp_tr, held, th, cfg)
     changed.append({"unit": held.id, "start_from": start, "log_prob_gain": lp_new - lp_k,
                     "heldout_loglik_before": old, "heldout_loglik_after": model["heldout_loglik"][k]})
     log(f"screen {key}: fold {held.id} refitted from {start}, training log-posterior "
