@@ -2,8 +2,8 @@
 row by row, and with simulate_at="raw" (the default) the model force goes through exactly the
 data's filter, so at the true parameters the residual of a decimated record is the decimated
 noise and nothing else; simulate_at="kept" (the model run on the decimated displacement) is a
-different model and leaves a systematic residual. The coarsened records of the MAP search run
-on their own coarse displacement."""
+different model and leaves a systematic residual. The coarsened records run on their own
+coarse displacement, or on the kept or raw samples with every k-th output compared."""
 from __future__ import annotations
 
 import numpy as np
@@ -80,6 +80,28 @@ def test_coarsened_records_simulate_on_their_own_samples(decimated_case):
     assert r.sim_drive is None and r.n == r.drive.n <= 200
     assert c.simulate(th, r).shape == (1, r.n)
     assert np.isfinite(c.log_prob(th)).all()
+
+
+def test_coarsened_kept_and_full_modes_compare_every_kth_output(decimated_case):
+    """simulate="kept": the model runs on the kept samples and every k-th output is compared;
+    "full": as the fit simulates it (raw rate, filtered), every k-th output compared, so its
+    residual is exactly the fit's residual at those samples."""
+    space, th, recs, _ = decimated_case
+    lp = LogPosterior(space, [recs["raw"]])
+    full_res = lp.residuals(th, recs["raw"])[0]
+    kept_lp = LogPosterior(space, [recs["kept"]])
+    kept_res = kept_lp.residuals(th, recs["kept"])[0]
+    for mode, ref in (("full", full_res), ("kept", kept_res)):
+        c = coarsened(lp, max_samples=200, simulate=mode)
+        r = c.records[0]
+        k = r.stride
+        assert k == int(np.ceil(recs["raw"].n / 200)) > 1 and r.n <= 200
+        assert (r.sim_drive is None) == (mode == "kept")
+        assert np.allclose(c.residuals(th, r)[0], ref[::k], rtol=0, atol=1e-9 * np.abs(ref).max())
+        assert np.isfinite(c.log_prob(th)).all()
+    # the coarse mode is a different (coarser) model: its residual is not the kept model's
+    c = coarsened(lp, max_samples=200)
+    assert c.records[0].stride == 1 and not np.allclose(c.residuals(th, c.records[0])[0], kept_res[::k])
 
 
 def test_bad_simulate_at_is_refused():

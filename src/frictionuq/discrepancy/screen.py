@@ -155,7 +155,7 @@ def _candidate_map(logpost, base: dict, rng) -> tuple[np.ndarray, float]:
     own multi-start search already placed the other parameters). The starts are run on the
     coarsened log-posterior (as in find_map), the best two refined on the full one."""
     sp = logpost.space
-    coarse = coarsened(logpost)
+    coarse = coarsened(logpost, simulate="coarse")   # the screening's calibration
     th0 = _theta_in(sp, base["space"], base["all"])
     eff_idx = [i for i, n in enumerate(sp.names) if n not in base["space"].names]
     starts = [th0]

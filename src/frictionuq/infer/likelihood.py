@@ -56,6 +56,7 @@ class FitRecord:
     frequency_hz: float | None = None
     noise_theta: float = 0.0     # MA coefficient of `arma` noise (noisemodel), set at the MAP
     sim_drive: M.Drive | None = None   # raw-rate drive when the model is simulated at the raw rate
+    stride: int = 1              # compare every stride-th kept sample only (coarsened copies)
 
     @property
     def n(self) -> int:
@@ -183,8 +184,8 @@ class LogPosterior:
         F = M.simulate_batch(drive, None, Mx, model=self.space.model, eps=rec.eps,
                              parallel=self.parallel, check=False)
         if rec.sim_drive is not None:
-            F = _decimate(F, rec.q)[:, : rec.n]
-        return F
+            F = _decimate(F, rec.q)
+        return F[:, ::rec.stride][:, : rec.n]
 
     def loglik_records(self, theta) -> np.ndarray:
         """(W, n_records) log-likelihood of each record (no prior check)."""
