@@ -8,8 +8,10 @@ lands near it. The search therefore works in three steps:
    it, the best of a batch of prior draws, and the best point of a differential-evolution search
    over the whole prior box on the coarsened records (`global_start`: least squares from a
    start near the answer can still end in a wrong basin, see there);
-2. from each start, on coarsened copies of the records (every k-th sample, <= 800 per record,
-   of the model run on the kept samples: `coarsened(simulate="kept")`),
+2. from each local start, least squares on coarsened copies of the records (every k-th sample,
+   <= 800 per record, the model run on the coarse displacement: cheap); all starts ranked on
+   copies that run the model on the kept samples and compare every k-th output
+   (`coarsened(simulate="kept")`, on which the global search runs too),
    then for the two best local starts and the best global one again on the full records,
    trust-region least squares (scipy.optimize.least_squares, bounded by the prior box) on the concatenated residuals of all records, for the model parameters and the
    force offset; the Jacobian is a forward difference evaluated as ONE batch of D+1 simulations
@@ -151,7 +153,9 @@ def coarsened(logpost: LogPosterior, max_samples: int = 800, simulate: str = "co
     the fit simulates it (raw rate where the record has one), every k-th output compared. A record
     short enough to keep is kept as it is in every mode.
 
-    find_map uses "kept". Measured on the BRFD twin (four harmonics 0.05-0.5 Hz per level, 400
+    find_map ranks its starts and runs its global search on "kept" (the local starts' least
+    squares on "coarse", which costs less on long records: MFD hidden thermal_fade campaign, find_map
+    20.5 s all "coarse", 26.5 s all "kept", 23.2 s so). Measured on the BRFD twin (four harmonics 0.05-0.5 Hz per level, 400
     samples per cycle, with the global starts): at 53 N the "coarse" copies ranked the MAP found
     (-62,234 on the full records) 700 above the fit from the published values (-60,213), and the
     search ended there; with "kept" it ended at -60,213.8 (15 s), with "full" at -60,213.9 (58 s).
@@ -211,7 +215,8 @@ def find_map(logpost: LogPosterior, scales: RecordScales, rng: np.random.Generat
     """Multi-start MAP search. Returns (theta_map, log_prob_map, info)."""
     log = log or (lambda m: None)
     sp = logpost.space
-    coarse = coarsened(logpost, simulate="kept")
+    coarse = coarsened(logpost)              # cheap: the local starts' least squares
+    ranked = coarsened(logpost, simulate="kept")   # faithful: ranking and the global search
     h0 = heuristic_values(sp, logpost.records, scales)
     th_h = _clip_in(sp, sp.to_theta({n: h0.get(n, np.exp(0.5 * (sp.lo[i] + sp.hi[i])) if sp.log[i]
                                           else 0.5 * (sp.lo[i] + sp.hi[i]))
@@ -236,27 +241,25 @@ def find_map(logpost: LogPosterior, scales: RecordScales, rng: np.random.Generat
     lp = np.concatenate([coarse.log_prob(draws[i:i + 256]) for i in range(0, n_draws, 256)])
     for k in np.argsort(-lp)[:n_prior]:
         starts.append(draws[k])
-    generations, global_lp = [], []
+    results = []     # (log-posterior on `ranked`, theta, is a global start)
+    for s in starts:     # raw least squares can lower the log-posterior: then the start is kept
+        th, _ = least_squares_fit(coarse, s, max_nfev=100)
+        lp_th, lp_s = ranked.log_prob(np.vstack([th, s]))
+        results.append((float(lp_th), th, False) if lp_th >= lp_s else (float(lp_s), s, False))
+    generations = []
     for _ in range(n_global):     # independent runs: one reached the mode in 7-8 of 10 seeds
-        th_g, gens = global_start(coarse, th_h, rng)
-        starts.append(th_g)
+        th_g, gens = global_start(ranked, th_h, rng)
+        results.append((float(ranked.log_prob(th_g[None, :])[0]), th_g, True))
         generations.append(gens)
-        global_lp.append(round(float(coarse.log_prob(th_g[None, :])[0]), 1))
-    n_local = len(starts) - n_global
-    results = []
-    for j, s in enumerate(starts):   # raw least squares can lower the log-posterior: then the start
-        th, r = least_squares_fit(coarse, s, max_nfev=100)
-        lp_th, lp_s = (float(coarse.log_prob(z[None, :])[0]) for z in (th, s))
-        results.append(((lp_th, th, r) if lp_th >= lp_s else (lp_s, s, r)) + (j >= n_local,))
     results.sort(key=lambda z: -z[0])
     coarse_lps = [z[0] for z in results]
-    if coarse is not logpost:
-        # refined on the full records: the two best local starts and the best global one (the
-        # coarse records can rank them wrongly: on the BRFD twin's 53 N level, 0.05-0.5 Hz, the
-        # global start ranked first on them and ended 2,500 nats lower on the full records)
-        chosen = [z for z in results if not z[3]][:2] + [z for z in results if z[3]][:1]
+    if ranked is not logpost:
+        # refined on the full records: the two best local starts and the best global one (even
+        # the ranking copies can rank them wrongly: on the BRFD twin's 53 N level the global start
+        # ranked first on the coarse copies and ended 2,500 nats lower on the full records)
+        chosen = [z for z in results if not z[2]][:2] + [z for z in results if z[2]][:1]
         fine = []
-        for _, th0, _, _ in chosen:
+        for _, th0, _ in chosen:
             th, r = least_squares_fit(logpost, th0, max_nfev=60)
             fine.append((float(logpost.log_prob(th[None, :])[0]), th, r))
             for _ in range(3):     # iteratively reweighted: AR(1)-whitened, per-record scales
@@ -264,12 +267,12 @@ def find_map(logpost: LogPosterior, scales: RecordScales, rng: np.random.Generat
                 fine.append((float(logpost.log_prob(th[None, :])[0]), th, r))
         results = sorted(fine, key=lambda z: -z[0])
     best_lp, best = results[0][:2]
-    log(f"least squares from {len(starts)} starts (coarse log-posteriors, best first: "
+    log(f"least squares from {len(starts)} starts and {n_global} global searches (log-posteriors "
+        f"on the ranking copies, best first: "
         f"{[round(v, 1) for v in coarse_lps[:4]]}); refined best {best_lp:.6g}")
 
     th_map, lp_map = polish(logpost, best, best_lp)
-    info = {"starts_log_prob_coarse": coarse_lps, "heuristic": h0, "global_generations": generations,
-            "global_log_prob_coarse": global_lp}
+    info = {"starts_log_prob_coarse": coarse_lps, "heuristic": h0, "global_generations": generations}
     if sp.likelihood == "arma":      # the records' MA coefficients at the MAP, then re-polished
         for rnd in range(2):
             thetas = set_noise_shape(logpost, th_map)
