@@ -102,6 +102,8 @@ def test_coarsened_kept_and_full_modes_compare_every_kth_output(decimated_case):
     # the coarse mode is a different (coarser) model: its residual is not the kept model's
     c = coarsened(lp, max_samples=200)
     assert c.records[0].stride == 1 and not np.allclose(c.residuals(th, c.records[0])[0], kept_res[::k])
+    with pytest.raises(ValueError, match="simulate"):
+        coarsened(lp, simulate="raw")
 
 
 def test_bad_simulate_at_is_refused():

@@ -67,7 +67,8 @@ from ..campaign import Record
 from ..infer.compare import elpd_total, heldout_loglik
 from ..infer.fit import FitConfig, FitSpec, prepare
 from ..infer.likelihood import LogPosterior, records_from_tests
-from ..infer.optimize import coarsened, find_map, gauss_newton_cov, least_squares_fit, whitening
+from ..infer.optimize import (_clip_in, coarsened, find_map, gauss_newton_cov, least_squares_fit,
+                              whitening)
 
 MIN_GAIN = 20.0
 MIN_UNIT_GAIN = 5.0
@@ -194,8 +195,7 @@ def _heldout_ll(lp_tr, held, theta, cfg: FitConfig) -> float:
     z = np.random.default_rng([N_PRED_DRAWS, zlib.crc32(held.id.encode())]).standard_normal(
         (N_PRED_DRAWS, sp.ndim))
     z[0] = 0.0
-    m = 1e-9 * (sp.hi - sp.lo)
-    draws = np.clip(theta + z @ np.linalg.cholesky(cov).T, sp.lo + m, sp.hi - m)
+    draws = _clip_in(sp, theta + z @ np.linalg.cholesky(cov).T)
     rec = records_from_tests([held], samples_per_cycle=cfg.samples_per_cycle, eps=cfg.eps,
                              simulate_at=cfg.simulate_at)
     ll, _ = heldout_loglik(LogPosterior(sp, rec), draws)

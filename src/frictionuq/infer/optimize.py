@@ -13,9 +13,10 @@ lands near it. The search therefore works in three steps:
    copies that run the model on the kept samples and compare every k-th output
    (`coarsened(simulate="kept")`, on which the global search runs too),
    then for the two best local starts and the best global one again on the full records,
-   trust-region least squares (scipy.optimize.least_squares, bounded by the prior box) on the concatenated residuals of all records, for the model parameters and the
-   force offset; the Jacobian is a forward difference evaluated as ONE batch of D+1 simulations
-   (simulate_batch, all cores);
+   trust-region least squares (scipy.optimize.least_squares, bounded by the prior box) on the
+   concatenated residuals of all records, for the model parameters and the force offset; the
+   Jacobian is a forward difference evaluated as ONE batch of D+1 simulations (simulate_batch,
+   all cores);
 3. the best result is polished with Powell's method on the full log-posterior (priors and the
    integrated per-record noise included).
 
@@ -145,7 +146,8 @@ def least_squares_fit(logpost: LogPosterior, theta0: np.ndarray, max_nfev: int =
     return _clip_in(sp, r.x), r
 
 
-def coarsened(logpost: LogPosterior, max_samples: int = 800, simulate: str = "coarse") -> LogPosterior:
+def coarsened(logpost: LogPosterior, max_samples: int = 800,
+              simulate: str = "coarse") -> LogPosterior:
     """The same log-posterior on every k-th sample of each record (for cheap searches).
     simulate="coarse": the model runs on the coarse displacement itself (sim_drive dropped; the
     cheapest, but with steps k times longer it is a different discrete-time model); "kept": it
@@ -153,16 +155,19 @@ def coarsened(logpost: LogPosterior, max_samples: int = 800, simulate: str = "co
     the fit simulates it (raw rate where the record has one), every k-th output compared. A record
     short enough to keep is kept as it is in every mode.
 
-    find_map ranks its starts and runs its global search on "kept" (the local starts' least
-    squares on "coarse", which costs less on long records: MFD hidden thermal_fade campaign, find_map
-    20.5 s all "coarse", 26.5 s all "kept", 23.2 s so). Measured on the BRFD twin (four harmonics 0.05-0.5 Hz per level, 400
-    samples per cycle, with the global starts): at 53 N the "coarse" copies ranked the MAP found
+    find_map ranks its starts and runs its global search on "kept", and runs the local starts'
+    least squares on "coarse", which costs less on long records (MFD hidden thermal_fade
+    campaign: find_map 20.5 s all "coarse", 26.5 s all "kept", 23.2 s so). Measured on the BRFD
+    twin (four harmonics 0.05-0.5 Hz per level, 400 samples per cycle, with the global starts):
+    at 53 N the "coarse" copies ranked the MAP found
     (-62,234 on the full records) 700 above the fit from the published values (-60,213), and the
     search ended there; with "kept" it ended at -60,213.8 (15 s), with "full" at -60,213.9 (58 s).
     At 267 N "coarse" ended at -115,284, "kept" at -115,194.8 (the fit from the published values:
     -115,194.8); at 35 N both at that fit."""
     from dataclasses import replace as dc_replace
     from .. import model as M
+    if simulate not in ("coarse", "kept", "full"):
+        raise ValueError(f"simulate must be 'coarse', 'kept' or 'full', got {simulate!r}")
     recs = []
     for r in logpost.records:
         k = max(1, int(np.ceil(r.n / max_samples)))
@@ -176,9 +181,13 @@ def coarsened(logpost: LogPosterior, max_samples: int = 800, simulate: str = "co
                                    sim_drive=None))
         elif simulate == "kept":
             recs.append(dc_replace(r, **common, sim_drive=None, stride=k))
-        else:
+        else:       # "full"
             recs.append(dc_replace(r, **common, stride=k))
     return LogPosterior(logpost.space, recs, logpost.parallel)
+
+
+def _log_prob_batched(logpost: LogPosterior, X: np.ndarray, batch: int = 256) -> np.ndarray:
+    return np.concatenate([logpost.log_prob(X[i:i + batch]) for i in range(0, len(X), batch)])
 
 
 def global_start(coarse: LogPosterior, theta0: np.ndarray, rng: np.random.Generator,
@@ -194,12 +203,11 @@ def global_start(coarse: LogPosterior, theta0: np.ndarray, rng: np.random.Genera
     search (128 members, 100-170 generations to convergence, 3-4 s on one core) reached the
     generating values' basin on the clean hidden BRFD campaigns of seeds 1, 2, 5 and 7 (400-420
     nats gained; MFD seeds 4 and 7 were already there); on the real 36 lb sines of quick.toml it
-    gained 39 nats. It is not certain: on a short 66 N record 8 of 10 seeds reached the mode (best1bin;
-    rand1bin, best2bin 0, currenttobest1bin 4, no x0 or Latin hypercube 7, popsize 16 8), so
-    find_map runs it more than once."""
+    gained 39 nats. It is not certain: on a short 66 N record 8 of 10 seeds reached the mode
+    (best1bin; rand1bin, best2bin 0, currenttobest1bin 4, no x0 or Latin hypercube 7, popsize
+    16 8), so find_map runs it more than once."""
     def nlp(X):
-        X = np.atleast_2d(X.T)
-        v = np.concatenate([coarse.log_prob(X[i:i + 256]) for i in range(0, len(X), 256)])
+        v = _log_prob_batched(coarse, np.atleast_2d(X.T))
         return np.where(np.isfinite(v), -v, 1e300)
     sp = coarse.space
     r = differential_evolution(nlp, list(zip(sp.lo, sp.hi)), popsize=popsize, maxiter=maxiter,
@@ -238,7 +246,7 @@ def find_map(logpost: LogPosterior, scales: RecordScales, rng: np.random.Generat
     for _ in range(n_random):
         starts.append(_clip_in(sp, th_h + rng.normal(0, 0.08, sp.ndim) * width))
     draws = sp.sample_prior(n_draws, rng)
-    lp = np.concatenate([coarse.log_prob(draws[i:i + 256]) for i in range(0, n_draws, 256)])
+    lp = _log_prob_batched(coarse, draws)
     for k in np.argsort(-lp)[:n_prior]:
         starts.append(draws[k])
     results = []     # (log-posterior on `ranked`, theta, is a global start)
@@ -252,7 +260,7 @@ def find_map(logpost: LogPosterior, scales: RecordScales, rng: np.random.Generat
         results.append((float(ranked.log_prob(th_g[None, :])[0]), th_g, True))
         generations.append(gens)
     results.sort(key=lambda z: -z[0])
-    coarse_lps = [z[0] for z in results]
+    ranked_lps = [z[0] for z in results]
     if ranked is not logpost:
         # refined on the full records: the two best local starts and the best global one (even
         # the ranking copies can rank them wrongly: on the BRFD twin's 53 N level the global start
@@ -269,10 +277,10 @@ def find_map(logpost: LogPosterior, scales: RecordScales, rng: np.random.Generat
     best_lp, best = results[0][:2]
     log(f"least squares from {len(starts)} starts and {n_global} global searches (log-posteriors "
         f"on the ranking copies, best first: "
-        f"{[round(v, 1) for v in coarse_lps[:4]]}); refined best {best_lp:.6g}")
+        f"{[round(v, 1) for v in ranked_lps[:4]]}); refined best {best_lp:.6g}")
 
     th_map, lp_map = polish(logpost, best, best_lp)
-    info = {"starts_log_prob_coarse": coarse_lps, "heuristic": h0, "global_generations": generations}
+    info = {"starts_log_prob_ranked": ranked_lps, "heuristic": h0, "global_generations": generations}
     if sp.likelihood == "arma":      # the records' MA coefficients at the MAP, then re-polished
         for rnd in range(2):
             thetas = set_noise_shape(logpost, th_map)
