@@ -136,3 +136,23 @@ def partial_run(report_run, tmp_path):
             (dest / name).symlink_to(report_run["run_dir"] / name, target_is_directory=True)
         return dest
     return make
+
+
+# pytest-xdist runs the suite on both cores (`-n 2 --dist loadgroup` in pyproject.toml). Tests
+# that share an expensive module- or session-scoped fixture are kept on one worker, so that the
+# fixture is built once: one group per file below, and one for the two files that use the shared
+# report run (report_run / rendered_report above). Other tests are spread one by one.
+XDIST_GROUPS = {
+    "test_report.py": "report-run", "test_report_browser.py": "report-run",
+    "test_quick_workflow.py": "quick-workflow", "test_pipeline.py": "pipeline",
+    "test_infer_compare.py": "compare", "test_advantage.py": "advantage",
+    "test_discrepancy_diagnostics.py": "diagnostics", "test_infer_decimation.py": "decimation",
+    "test_infer_likelihood.py": "likelihood", "test_predict.py": "predict",
+}
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        group = XDIST_GROUPS.get(item.path.name)
+        if group:
+            item.add_marker(pytest.mark.xdist_group(group))
