@@ -1,6 +1,6 @@
 """Shared fixtures: a small but complete workflow run folder built with the library (ingest, fit,
 mechanical advantage, validation, a harmonic prediction, model comparison) and its rendered
-HTML report, built once per session for tests/test_report.py and tests/test_report_browser.py.
+HTML report, built once per session for tests/test_report.py.
 
 The run: 3 tests of data/brfd-arts-d2 (the two 2 Hz sines, fitted per applied force: 36 lb and
 0 lb; the 1 Hz / 36 lb sine held out for validation), with the smallest sampler settings that
@@ -137,22 +137,3 @@ def partial_run(report_run, tmp_path):
         return dest
     return make
 
-
-# pytest-xdist runs the suite on both cores (`-n 2 --dist loadgroup` in pyproject.toml). Tests
-# that share an expensive module- or session-scoped fixture are kept on one worker, so that the
-# fixture is built once: one group per file below, and one for the two files that use the shared
-# report run (report_run / rendered_report above). Other tests are spread one by one.
-XDIST_GROUPS = {
-    "test_report.py": "report-run", "test_report_browser.py": "report-run",
-    "test_quick_workflow.py": "quick-workflow", "test_pipeline.py": "pipeline",
-    "test_infer_compare.py": "compare", "test_advantage.py": "advantage",
-    "test_discrepancy_diagnostics.py": "diagnostics", "test_infer_decimation.py": "decimation",
-    "test_infer_likelihood.py": "likelihood", "test_predict.py": "predict",
-}
-
-
-def pytest_collection_modifyitems(config, items):
-    for item in items:
-        group = XDIST_GROUPS.get(item.path.name)
-        if group:
-            item.add_marker(pytest.mark.xdist_group(group))

@@ -1,7 +1,9 @@
 """frictionuq.report: the self-contained HTML report of a workflow run.
 
 Most tests use the session's run folder and report (tests/conftest.py: a tiny, unconverged run
-on 2 short BRFD tests, built with the library); a few check helpers on synthetic data."""
+on 2 short BRFD tests, built with the library); a few check helpers on synthetic data. The last
+test opens the report as a reader sees it, in headless Chromium (tests/browser.py). (One file:
+pytest-xdist sends each file to one worker, so the shared run is built once.)"""
 from __future__ import annotations
 
 import base64
@@ -10,6 +12,7 @@ import re
 import shutil
 from html import unescape
 from html.parser import HTMLParser
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,6 +20,7 @@ import pytest
 from frictionuq import published
 from frictionuq.campaign import Record
 from frictionuq.campaign import Test as CampaignTest
+from browser import check_report_in_browser, chromium_path
 from frictionuq.report import SECTIONS, render_report
 from frictionuq.report.sections import campaign as campaign_section
 from frictionuq.report.sections import comparison
@@ -288,3 +292,27 @@ def test_incomplete_fit_folder_is_reported_not_fatal(report_run, tmp_path):
     assert "posterior.nc: missing" in subs["fit-applied-0lb"]["blocks"][0]["text"]
     assert any(b["kind"] == "figure" for b in subs["fit-applied-36lb"]["blocks"])
     assert [L["id"] for L in levels.level_stats(ctx)] == ["applied-36lb"]
+
+
+# ------------------------------------------------------------------ in headless Chromium
+ARTIFACTS = Path(__file__).resolve().parent.parent / "test-artifacts"
+
+
+@pytest.mark.slow
+def test_report_in_headless_chromium(rendered_report):
+    if chromium_path() is None:
+        pytest.skip("headless Chromium not available: needs /usr/bin/chromium (apt-get install "
+                    "chromium) and the playwright package (pip install -e .[test])")
+    html = rendered_report["path"]
+    shot = ARTIFACTS / f"report-{html.stem}.png"
+    found = check_report_in_browser(html, shot)
+    assert not found["problems"], found["problems"]
+    for sid, _ in SECTIONS:
+        s = found["sections"][sid]
+        assert s["present"] and s["visible"] and s["text"] > 20, (sid, s)
+    assert found["title"] == "Tiny report test"
+    assert found["body_text"] > 2000
+    assert len(found["images"]) >= 12 and all(i["width"] > 0 for i in found["images"])
+    assert found["page_width"] <= found["viewport_width"]
+    assert found["main_width"] <= 1100
+    assert shot.is_file() and shot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
