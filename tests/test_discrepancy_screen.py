@@ -9,7 +9,7 @@ import json
 import pytest
 
 from frictionuq.campaign import load_campaign
-from frictionuq.discrepancy import screen
+from frictionuq.discrepancy import fits, screen
 from frictionuq.discrepancy.hidden import hidden_campaign
 
 
@@ -124,11 +124,11 @@ def test_discover_names_the_hidden_effect_or_none(tmp_path, device, effect, seed
         from frictionuq.infer.fit import plan
         lv = doc["levels"][0]["models"]["baseline"]
         tests = plan(load_campaign(tmp_path / "c"), "applied", cfg)[0].tests
-        lp, _ = screen._logpost(tests, (), cfg)
+        lp, _ = fits.logpost_for(tests, (), cfg)
         vals = dict(lv["map"])
         vals.update({k: v for k, v in pub.published_params(
             device, ans["applied"] * (1.0 if device == "brfd" else 6894.757293168)).items() if k in vals})
-        best = screen._lp(lp, screen._refit(lp, lp.space.to_theta(vals)))
+        best = fits.log_prob(lp, fits.refit(lp, lp.space.to_theta(vals)))
         assert lv["log_prob_map"] >= best - 5.0, (lv["log_prob_map"], best)
     if effect:
         assert doc["rmse_after"] < doc["rmse_before"]

@@ -28,7 +28,7 @@ import numpy as np
 from .. import atomic
 from ..errors import InputError
 from ..infer.fit import FitConfig, FitSpec, jsonable, plan, run_fit
-from . import screen
+from . import fits, screen
 
 
 def _noise_scale(entry: dict) -> float | None:
@@ -40,7 +40,7 @@ def _noise_scale(entry: dict) -> float | None:
 
 def _model_forces(level_tests, cfg, effects, map_values: dict) -> list[tuple]:
     """[(fit record, simulated force at the MAP point incl. the load-cell offset (N))] per test."""
-    lp, _ = screen._logpost(level_tests, effects, cfg)
+    lp, _ = fits.logpost_for(level_tests, effects, cfg)
     th = lp.space.to_theta({n: map_values[n] for n in lp.space.names})[None, :]
     off = float(lp.space.offset(th)[0])
     return [(rec, lp.simulate(th, rec)[0] + off) for rec in lp.records]
