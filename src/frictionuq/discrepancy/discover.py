@@ -1,7 +1,8 @@
 """`frictionuq discover CAMPAIGN --out DIR`: name the missing effect and show the gap shrink.
 
 1. Screen (screen.py): per applied-force level, the baseline 3-stage model and every candidate
-   effect of the library by held-out log-likelihood at leave-one-test-out MAP points.
+   effect of the library by the held-out tests' log predictive densities, leave one test out
+   (ratios of Laplace evidences, predictive.py).
 2. Decide (screen.decide): the best candidate, or "none" (decision rule in screen.py).
 3. Refit by MCMC (infer.fit.run_fit) with the named effect, per level: the effect's parameters
    with 95 % intervals, and the RMSE after.
