@@ -107,14 +107,11 @@ def whitening(logpost: LogPosterior, theta: np.ndarray) -> list[tuple[float, flo
     return out
 
 
-def least_squares_fit(logpost: LogPosterior, theta0: np.ndarray, max_nfev: int = 200, white=None,
-                      extra=None):
+def least_squares_fit(logpost: LogPosterior, theta0: np.ndarray, max_nfev: int = 200, white=None):
     """Least squares over all sampled parameters (model and offset) from theta0; with `white`
     (per record (phi, innovation sd), from `whitening`) on the AR(1)-whitened residuals, each
     record scaled by its own noise: iterated, this maximises the likelihood with per-record
-    AR(1) noise (the raw least squares lets the records with the largest misfit dominate).
-    `extra(theta (S, D)) -> (S, m)`: more residuals appended after the records' (a Gaussian
-    prior's whitened distance, discrepancy.predictive)."""
+    AR(1) noise (the raw least squares lets the records with the largest misfit dominate)."""
     sp = logpost.space
 
     def resid_batch(th):
@@ -127,8 +124,6 @@ def least_squares_fit(logpost: LogPosterior, theta0: np.ndarray, max_nfev: int =
                 e = np.concatenate([e[:, :1] * np.sqrt(1 - phi**2), e[:, 1:] - phi * e[:, :-1]],
                                    axis=1) / s
             parts.append(e)
-        if extra is not None:
-            parts.append(extra(th))
         r = np.concatenate(parts, axis=1)
         return np.where(np.isfinite(r), r, 1e12)
 
