@@ -119,8 +119,8 @@ def _candidate_map(logpost, base: dict, rng) -> tuple[np.ndarray, float]:
     11) the warm starts ended 39 nats below the fit from the generating values (sigma1 2,601
     against 523 N s/m), and the training fits of the folds, started there, predicted the 0.5 Hz
     test 400 nats worse than from that fit; the effect was not named (gains +122 / -42 / +205).
-    With one global search per candidate: -16,501.8 (above that fit), gains +148 / +359 / +219,
-    named; about 4 s per candidate."""
+    With one global search per candidate: -16,501.8 (above that fit), and with the evidence-ratio
+    score gains +172 / +222 / +269, named (benchmarks/bench_discover.py); about 4 s per candidate."""
     sp = logpost.space
     coarse = coarsened(logpost, simulate="coarse")   # the screening's calibration
     th0 = F.theta_in(sp, base["space"], base["all"])
