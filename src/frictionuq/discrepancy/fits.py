@@ -38,8 +38,7 @@ def white_fit(logpost, theta0, rounds: int = 2, max_nfev: int = 40):
 def refit(logpost, theta0):
     """white_fit from theta0; theta0 itself if the fit ends where the log-posterior is not finite."""
     th = white_fit(logpost, theta0)
-    lp = float(logpost.log_prob(th[None, :])[0])
-    return th if np.isfinite(lp) else theta0
+    return th if np.isfinite(log_prob(logpost, th)) else theta0
 
 
 def theta_in(space_to, space_from, theta_from) -> np.ndarray:
@@ -47,7 +46,7 @@ def theta_in(space_to, space_from, theta_from) -> np.ndarray:
     defaults clipped into the prior box."""
     vals = dict(zip(space_from.names, space_from.to_values(theta_from)))
     full = {}
-    for i, n in enumerate(space_to.names):
+    for n in space_to.names:
         if n in vals:
             full[n] = vals[n]
         else:

@@ -32,12 +32,13 @@ import numpy as np
 
 from ..infer.likelihood import LogPosterior
 from ..infer.optimize import gauss_newton_cov
+from .fits import log_prob
 
 
 def log_evidence(logpost: LogPosterior, theta: np.ndarray) -> float:
     """log Z of `logpost` by Laplace's method at its maximum `theta`, without the D/2 log 2 pi
     term (nats; -inf where the log-posterior is not finite)."""
-    lp = float(logpost.log_prob(theta[None, :])[0])
+    lp = log_prob(logpost, theta)
     if not np.isfinite(lp):
         return -math.inf
     sign, logdet = np.linalg.slogdet(gauss_newton_cov(logpost, theta))

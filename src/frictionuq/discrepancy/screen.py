@@ -133,7 +133,7 @@ def _candidate_map(logpost, base: dict, rng) -> tuple[np.ndarray, float]:
     first = []
     for s0 in starts:
         th = F.white_fit(coarse, s0, rounds=2, max_nfev=50)
-        first.append((float(coarse.log_prob(th[None, :])[0]), th))
+        first.append((F.log_prob(coarse, th), th))
     first.sort(key=lambda z: -z[0])
     refine = [s0 for _, s0 in first[:2]]
     if N_CANDIDATE_GLOBAL:
@@ -141,10 +141,10 @@ def _candidate_map(logpost, base: dict, rng) -> tuple[np.ndarray, float]:
         for _ in range(N_CANDIDATE_GLOBAL):
             th_g, _ = global_start(ranked, first[0][1], rng)
             refine.append(th_g)
-    best, best_lp = th0, float(logpost.log_prob(th0[None, :])[0])
+    best, best_lp = th0, F.log_prob(logpost, th0)
     for s0 in refine:
         th = F.white_fit(logpost, s0, rounds=3)
-        lp = float(logpost.log_prob(th[None, :])[0])
+        lp = F.log_prob(logpost, th)
         if lp > best_lp:
             best, best_lp = th, lp
     return best, best_lp
