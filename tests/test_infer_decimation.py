@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from frictionuq import published
-from frictionuq.infer.likelihood import LogPosterior, _decimate, prepare_record
+from frictionuq.infer.decimate import decimate as _decimate, decimator
+from frictionuq.infer.likelihood import LogPosterior, prepare_record
 from frictionuq.infer.optimize import coarsened
 from frictionuq.infer.priors import default_priors, record_scales
 from frictionuq.infer.space import Space
@@ -26,6 +27,20 @@ def test_decimate_acts_row_by_row_and_linearly():
     assert np.allclose(_decimate(a, Q), rows, rtol=0, atol=1e-12)
     b = rng.standard_normal(1001)
     assert np.allclose(_decimate(a[0] - 2.0 * b, Q), rows[0] - 2.0 * _decimate(b, Q), atol=1e-12)
+
+
+@pytest.mark.parametrize("n,q", [(1001, 2), (1001, 5), (997, 10), (64, 7), (4000, 3)])
+def test_banded_decimator_equals_the_definition(n, q):
+    """The log-posterior's decimator (a banded matrix read off resample_poly, infer.decimate)
+    gives decimate()'s numbers on every kept sample, the ends included, for any row."""
+    rng = np.random.default_rng(n + q)
+    a = rng.standard_normal((4, n)).cumsum(axis=1) + 50.0 * np.linspace(-1, 2, n)
+    ref = _decimate(a, q)
+    got = decimator(n, q)(a)
+    assert got.shape == ref.shape
+    assert np.max(np.abs(got - ref)) <= 1e-12 * np.max(np.abs(ref))
+    with pytest.raises(ValueError, match="rows of"):
+        decimator(n, q)(a[:, :-1])
 
 
 class _Rec:

@@ -10,7 +10,7 @@ autocorrelated; the iid form then treats thousands of dependent samples as indep
 posteriors far too narrow, which is why `ar1` is the default.
 
 Decimation. Long records are filtered and downsampled (scipy.signal.resample_poly: a zero-phase
-Kaiser-windowed FIR anti-alias filter) so that the excitation is still resolved: the kept rate
+Kaiser-windowed FIR anti-alias filter, infer.decimate) so that the excitation is still resolved: the kept rate
 is at least `samples_per_cycle` x the dominant frequency and 20 x the frequency below which 99 %
 of the velocity power above the displacement's noise floor lies (dominant_frequency).
 Displacement, force and the applied-force signal are filtered alike.
@@ -30,9 +30,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import resample_poly
 
 from .. import model as M
+from .decimate import decimate as _decimate, decimator
 from ..noise import default_eps
 from . import noisemodel
 from .space import Space
@@ -99,20 +99,6 @@ def decimation_factor(t, x, samples_per_cycle: float = 128, frequency_hz: float 
 
 
 SIMULATE_AT = ("raw", "kept")
-
-
-def _decimate(a: np.ndarray, q: int) -> np.ndarray:
-    """Anti-alias filter and keep every q-th sample along the last axis (1-D record, or one row
-    per walker). Linear in `a`, so decimating y - F equals decimating y minus decimating F."""
-    if q == 1:
-        return a.copy()
-    # remove the linear trend through the end points first so the FIR's zero padding does not
-    # create edge transients, then add it back at the kept samples
-    n = a.shape[-1]
-    ramp = np.arange(n) / (n - 1)
-    trend = a[..., :1] + (a[..., -1:] - a[..., :1]) * ramp
-    out = resample_poly(a - trend, 1, q, axis=-1)
-    return out + trend[..., ::q][..., : out.shape[-1]]
 
 
 def prepare_record(test_id, t, x, force, applied=None, *, q: int | str = "auto", eps="auto",
@@ -184,7 +170,7 @@ class LogPosterior:
         F = M.simulate_batch(drive, None, Mx, model=self.space.model, eps=rec.eps,
                              parallel=self.parallel, check=False)
         if rec.sim_drive is not None:
-            F = _decimate(F, rec.q)
+            F = decimator(F.shape[1], rec.q)(F)
         return F[:, ::rec.stride][:, : rec.n]
 
     def loglik_records(self, theta) -> np.ndarray:
