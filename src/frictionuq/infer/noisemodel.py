@@ -36,7 +36,7 @@ import math
 import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.signal import lfilter
-from scipy.special import gammaln, logsumexp
+from scipy.special import gammaln
 
 PHI_MAX = 0.999
 _U = np.linspace(0.0, -math.log(1.0 - PHI_MAX), 600)
@@ -121,6 +121,15 @@ def _Q(S0, S1, S2, e0sq, phi):
     return S0 - 2 * phi * S1 + phi**2 * (S2 - e0sq)
 
 
+def _logsumexp_rows(a: np.ndarray) -> np.ndarray:
+    """log sum exp over each row of a (W, K); -inf for a row of -inf. scipy.special.logsumexp
+    does the same with array-API dispatch that cost 0.26 ms a call, 8 % of an MCMC step."""
+    m = np.max(a, axis=1, keepdims=True)
+    m = np.where(np.isfinite(m), m, 0.0)
+    with np.errstate(divide="ignore"):
+        return m[:, 0] + np.log(np.sum(np.exp(a - m), axis=1))
+
+
 def log_marginal(e: np.ndarray, kind: str, sigma_bounds: tuple[float, float],
                  sigma_fixed: float | None = None, phi_fixed: float | None = None) -> np.ndarray:
     """log p(e | model) with the record's noise parameters integrated out (or fixed). (W,)"""
@@ -143,7 +152,7 @@ def log_marginal(e: np.ndarray, kind: str, sigma_bounds: tuple[float, float],
         s2 = sigma_fixed**2 * (1 - phis[None, :] ** 2)
         lp = (-0.5 * N * math.log(2 * math.pi) - 0.5 * N * np.log(s2)
               + 0.5 * np.log1p(-phis[None, :] ** 2) - Q / (2 * s2))
-    return logsumexp(lp + logw[None, :], axis=1)
+    return _logsumexp_rows(lp + logw[None, :])
 
 
 def draw_noise(e: np.ndarray, kind: str, rng: np.random.Generator,
