@@ -48,3 +48,21 @@ def test_synthetic_recovery(tmp_path):
     assert len(missed) <= 2, f"true values outside the 95 % intervals: {missed}"
     rec = json.loads((tmp_path / "synthetic" / "fit.json").read_text())   # writable (no int64)
     assert rec["sampler"]["steps"] == entry["sampler_steps"]
+
+
+def test_a_given_start_skips_the_multi_start_search(tmp_path, monkeypatch):
+    """run_fit(start=...) (discover passes the screening's MAP): find_map only polishes the given
+    point, never runs its multi-start search, and never ends below the start; a start that lacks
+    a sampled parameter is refused before any work."""
+    from frictionuq.infer import optimize
+    from frictionuq.infer.fit import prepare
+    test, truth = synthetic_test()
+    spec = FitSpec("synthetic", [test], 267.0, FitConfig(seed=1, samples_per_cycle=50))
+    _, scales, space, lp = prepare(spec)
+    monkeypatch.setattr(optimize, "_multi_start", lambda *a, **k: pytest.fail("searched"))
+    th0 = space.to_theta({n: truth[n] for n in space.names})
+    th, lp_map, info = optimize.find_map(lp, scales, np.random.default_rng(0), start=th0)
+    assert info["start"] == "given"
+    assert lp_map >= float(lp.log_prob(th0[None, :])[0]) - 1e-9
+    with pytest.raises(ValueError, match="lacks"):
+        run_fit(spec, tmp_path, "synthetic", start={"fc_fwd": truth["fc_fwd"]})

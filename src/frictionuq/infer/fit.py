@@ -152,8 +152,12 @@ def prepare(spec: FitSpec):
     return records, scales, space, LogPosterior(space, records)
 
 
-def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True, log=None) -> dict:
-    """Sample one fit and write its outputs under out_dir/<fit id>/. Returns its summary entry."""
+def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True, log=None,
+            start: dict | None = None) -> dict:
+    """Sample one fit and write its outputs under out_dir/<fit id>/. Returns its summary entry.
+    start: {parameter: SI value} of every sampled parameter, a MAP estimate found by another
+    search on the same log-posterior (discover passes the screening's): the sampler polishes it
+    instead of running its own multi-start search."""
     from .. import __version__
     from . import outputs
     log = log or (lambda m: None)
@@ -161,6 +165,12 @@ def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True
     fdir = Path(out_dir) / spec.id
     fdir.mkdir(parents=True, exist_ok=True)
     records, scales, space, logpost = prepare(spec)
+    theta0 = None
+    if start is not None:
+        missing = [n for n in space.names if n not in start]
+        if missing:
+            raise ValueError(f"run_fit {spec.id}: the start lacks {missing}")
+        theta0 = space.to_theta({n: start[n] for n in space.names})
     log(f"fit {spec.id}: {len(records)} tests, {sum(r.n for r in records)} samples after decimation "
         f"(factors {[r.q for r in records]}), {space.ndim} free parameters")
     from .priorpred import prior_predictive
@@ -168,7 +178,7 @@ def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True
     log(f"fit {spec.id}: prior predictive check {'passed' if ppc['passed'] else 'FAILED'} "
         "(measured peak, trough and energy inside the central 98 % of the prior predictive)")
     res = sample(logpost, scales, spec.config.seed, fdir / "chain.h5", spec.config.sampler,
-                 resume=resume, log=lambda m: log(f"fit {spec.id}: {m}"))
+                 resume=resume, log=lambda m: log(f"fit {spec.id}: {m}"), start=theta0)
     rng = np.random.default_rng([spec.config.seed, 7])
     post = outputs.posterior_draws(logpost, res, rng)
     pred = outputs.predictive(logpost, post, spec.config.n_predictive, rng)
@@ -195,6 +205,7 @@ def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True
                           "converged_tau": res.converged_tau, "model_evaluations": res.n_evals,
                           "seconds": res.seconds, "history": res.history},
               "map": dict(zip(space.names, map(float, space.to_values(res.theta_map)))),
+              "map_start": res.map_start,
               "log_prob_map": res.log_prob_map, "prior_predictive": ppc, "summary": entry}
     atomic.write_json(fdir / "fit.json", jsonable(record))
     log(f"fit {spec.id}: {'converged' if entry['converged'] else 'NOT converged'} "

@@ -219,9 +219,35 @@ def global_start(coarse: LogPosterior, theta0: np.ndarray, rng: np.random.Genera
 
 def find_map(logpost: LogPosterior, scales: RecordScales, rng: np.random.Generator,
              n_random: int = 6, n_prior: int = 4, n_draws: int = 1024, log=None,
-             n_global: int = 2):
-    """Multi-start MAP search. Returns (theta_map, log_prob_map, info)."""
+             n_global: int = 2, start: np.ndarray | None = None):
+    """Multi-start MAP search. Returns (theta_map, log_prob_map, info). With `start` (a point
+    found by another search on the same log-posterior, e.g. the discrepancy screening's) the
+    multi-start search is skipped and only the polish runs from there."""
     log = log or (lambda m: None)
+    sp = logpost.space
+    if start is not None:
+        best = _clip_in(sp, np.asarray(start, float))
+        best_lp = float(logpost.log_prob(best[None, :])[0])
+        if not np.isfinite(best_lp):
+            raise ValueError("find_map: the given start has a log-posterior that is not finite")
+        log(f"MAP polished from the given start (log-posterior {best_lp:.6g}); no multi-start search")
+        info = {"start": "given", "start_log_prob": best_lp}
+    else:
+        best, best_lp, info = _multi_start(logpost, scales, rng, n_random, n_prior, n_draws, log,
+                                           n_global)
+    th_map, lp_map = polish(logpost, best, best_lp)
+    if sp.likelihood == "arma":      # the records' MA coefficients at the MAP, then re-polished
+        for rnd in range(2):
+            thetas = set_noise_shape(logpost, th_map)
+            th_map, lp_map = polish(logpost, th_map, float(logpost.log_prob(th_map[None, :])[0]))
+        info["noise_theta"] = thetas
+        log(f"ARMA(1,1) noise, MA coefficient per record at the MAP: "
+            f"{[round(t, 3) for t in thetas]}; MAP log-posterior {lp_map:.6g}")
+    return th_map, lp_map, info
+
+
+def _multi_start(logpost, scales, rng, n_random, n_prior, n_draws, log, n_global):
+    """find_map's search (module docstring, steps 1-2): (best point, its log-posterior, info)."""
     sp = logpost.space
     coarse = coarsened(logpost)              # cheap: the local starts' least squares
     ranked = coarsened(logpost, simulate="kept")   # faithful: ranking and the global search
@@ -278,17 +304,8 @@ def find_map(logpost: LogPosterior, scales: RecordScales, rng: np.random.Generat
     log(f"least squares from {len(starts)} starts and {n_global} global searches (log-posteriors "
         f"on the ranking copies, best first: "
         f"{[round(v, 1) for v in ranked_lps[:4]]}); refined best {best_lp:.6g}")
-
-    th_map, lp_map = polish(logpost, best, best_lp)
-    info = {"starts_log_prob_ranked": ranked_lps, "heuristic": h0, "global_generations": generations}
-    if sp.likelihood == "arma":      # the records' MA coefficients at the MAP, then re-polished
-        for rnd in range(2):
-            thetas = set_noise_shape(logpost, th_map)
-            th_map, lp_map = polish(logpost, th_map, float(logpost.log_prob(th_map[None, :])[0]))
-        info["noise_theta"] = thetas
-        log(f"ARMA(1,1) noise, MA coefficient per record at the MAP: "
-            f"{[round(t, 3) for t in thetas]}; MAP log-posterior {lp_map:.6g}")
-    return th_map, lp_map, info
+    return best, best_lp, {"start": "search", "starts_log_prob_ranked": ranked_lps,
+                           "heuristic": h0, "global_generations": generations}
 
 
 def polish(logpost: LogPosterior, theta: np.ndarray, lp: float) -> tuple[np.ndarray, float]:

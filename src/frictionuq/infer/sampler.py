@@ -102,6 +102,7 @@ class SampleResult:
     seconds: float
     burn_in_steps: int = 0       # steps of the (unstored) burn-in phase
     history: list = field(default_factory=list)
+    map_start: str = "search"    # "search" (find_map's multi-start) or "given" (polished from a start)
 
 
 def _nwalkers(cfg: SamplerConfig, ndim: int) -> int:
@@ -321,8 +322,10 @@ def check(chain: np.ndarray, cfg: SamplerConfig) -> dict:
 
 def sample(logpost: LogPosterior, scales: RecordScales, seed: int,
            backend_path: str | Path | None = None,
-           cfg: SamplerConfig | None = None, resume: bool = True, log=None) -> SampleResult:
-    """Run the full sampler; see the module docstring."""
+           cfg: SamplerConfig | None = None, resume: bool = True, log=None,
+           start: np.ndarray | None = None) -> SampleResult:
+    """Run the full sampler; see the module docstring. `start`: a MAP estimate found elsewhere on
+    the same log-posterior (theta): the multi-start search is skipped, the polish runs from it."""
     cfg = cfg or SamplerConfig()
     log = log or (lambda msg: None)
     sp = logpost.space
@@ -334,7 +337,8 @@ def sample(logpost: LogPosterior, scales: RecordScales, seed: int,
     backend, resumed = _open_backend(backend_path, nw, ndim, resume, log)
 
     theta_map, lp_map, map_info = find_map(logpost, scales, rng, cfg.n_random_starts,
-                                           cfg.n_prior_starts, log=log, n_global=cfg.n_global_starts)
+                                           cfg.n_prior_starts, log=log, n_global=cfg.n_global_starts,
+                                           start=start)
     log(f"MAP log-posterior {lp_map:.6g}")
     burn_in_steps = 0
     state = None
@@ -383,8 +387,10 @@ def sample(logpost: LogPosterior, scales: RecordScales, seed: int,
     finally:
         if backend is not None:
             backend.close()
-    return _result(sampler, cfg, sp, n_done, converged, theta_map, lp_map, logpost, t0,
-                   burn_in_steps, history)
+    res = _result(sampler, cfg, sp, n_done, converged, theta_map, lp_map, logpost, t0,
+                  burn_in_steps, history)
+    res.map_start = map_info["start"]
+    return res
 
 
 def _run(sampler, state, cfg, sp, n_done, history, log):
