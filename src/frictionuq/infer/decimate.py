@@ -8,10 +8,10 @@ columns (the end points, through the line). `Decimator(n, q)` holds that matrix 
 to a batch of simulated forces (one row per walker) with a numba kernel, rows in parallel.
 
 Why: with the model simulated at the raw rate (infer.likelihood), every log-posterior
-evaluation decimates each walker's simulated force. resample_poly on (36, 5,000) rows took 5.4
-ms at q = 10 and 3.9 ms at q = 2, 30 % of one 36-walker evaluation of a three-test MFD level
-(simulation 18 ms, 2 cores); the banded product gives the same numbers (to rounding, checked on
-every build) in a fraction of that (benchmarks/bench_decimate.py prints both).
+evaluation decimates each walker's simulated force: in one 36-walker evaluation of a three-test
+MFD level (3 x 5,000 raw samples, q = 10, 2, 1; 2 cores) resample_poly took 9 of 31 ms. The
+banded product gives the same numbers (to 1e-15 relative, checked on every build) 2-3.6 times
+faster (benchmarks/bench_decimate.py prints both side by side); that evaluation now takes 22 ms.
 
 The matrix is read off resample_poly itself, by impulses spaced so far apart that their
 responses do not overlap: no copy of scipy's filter design, whatever its version does.

@@ -9,8 +9,8 @@ out (frictionuq.infer.noisemodel). Residuals of a friction model on a 100-1000 H
 autocorrelated; the iid form then treats thousands of dependent samples as independent and makes
 posteriors far too narrow, which is why `ar1` is the default.
 
-Decimation. Long records are filtered and downsampled (scipy.signal.resample_poly: a zero-phase
-Kaiser-windowed FIR anti-alias filter, infer.decimate) so that the excitation is still resolved: the kept rate
+Decimation (infer.decimate). Long records are filtered and downsampled (scipy.signal.resample_poly:
+a zero-phase Kaiser-windowed FIR anti-alias filter) so that the excitation is still resolved: the kept rate
 is at least `samples_per_cycle` x the dominant frequency and 20 x the frequency below which 99 %
 of the velocity power above the displacement's noise floor lies (dominant_frequency).
 Displacement, force and the applied-force signal are filtered alike.
@@ -32,9 +32,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import model as M
-from .decimate import decimate as _decimate, decimator
 from ..noise import default_eps
 from . import noisemodel
+from .decimate import decimate as _decimate, decimator
 from .space import Space
 
 LOG2PI = math.log(2 * math.pi)
