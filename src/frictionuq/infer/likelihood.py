@@ -34,7 +34,7 @@ import numpy as np
 from .. import model as M
 from ..noise import default_eps
 from . import noisemodel
-from .decimate import decimate as _decimate, decimator
+from .decimate import decimate, decimator
 from .space import Space
 
 LOG2PI = math.log(2 * math.pi)
@@ -117,9 +117,9 @@ def prepare_record(test_id, t, x, force, applied=None, *, q: int | str = "auto",
         q = decimation_factor(t, x, samples_per_cycle, frequency_hz)
     q = int(q)
     td = t[::q]
-    xd = _decimate(x, q)[: td.size]
-    yd = _decimate(force, q)[: td.size]
-    ad = None if applied is None else _decimate(np.asarray(applied, float), q)[: td.size]
+    xd = decimate(x, q)[: td.size]
+    yd = decimate(force, q)[: td.size]
+    ad = None if applied is None else decimate(np.asarray(applied, float), q)[: td.size]
     td = td[: xd.size]
     drive = M.prepare(td, xd, ad)
     sim_drive = M.prepare(t, x, applied) if q > 1 and simulate_at == "raw" else None

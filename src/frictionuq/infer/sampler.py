@@ -387,10 +387,8 @@ def sample(logpost: LogPosterior, scales: RecordScales, seed: int,
     finally:
         if backend is not None:
             backend.close()
-    res = _result(sampler, cfg, sp, n_done, converged, theta_map, lp_map, logpost, t0,
-                  burn_in_steps, history)
-    res.map_start = map_info["start"]
-    return res
+    return _result(sampler, cfg, sp, n_done, converged, theta_map, lp_map, logpost, t0,
+                   burn_in_steps, history, map_info["start"])
 
 
 def _run(sampler, state, cfg, sp, n_done, history, log):
@@ -424,7 +422,7 @@ def _run(sampler, state, cfg, sp, n_done, history, log):
 
 
 def _result(sampler, cfg, sp, n_done, converged, theta_map, lp_map, logpost, t0, burn_in_steps,
-            history) -> SampleResult:
+            history, map_start: str = "search") -> SampleResult:
     ndim = sp.ndim
     burn = int(n_done * cfg.discard_fraction)
     tau = _tau(sampler.get_chain(discard=burn))
@@ -438,4 +436,5 @@ def _result(sampler, cfg, sp, n_done, converged, theta_map, lp_map, logpost, t0,
         tau=np.asarray(tau, float), n_steps=n_done, burn=burn, thin=thin,
         acceptance=float(np.mean(sampler.acceptance_fraction)), converged_tau=converged,
         theta_map=theta_map, log_prob_map=lp_map, n_evals=int(logpost.n_evals),
-        seconds=time.perf_counter() - t0, burn_in_steps=burn_in_steps, history=history)
+        seconds=time.perf_counter() - t0, burn_in_steps=burn_in_steps, history=history,
+        map_start=map_start)
