@@ -99,6 +99,7 @@ def decimation_factor(t, x, samples_per_cycle: float = 128, frequency_hz: float 
 
 
 SIMULATE_AT = ("raw", "kept")
+N_STATS = len(noisemodel.STATS)      # sufficient statistics of a record's residuals
 
 
 def prepare_record(test_id, t, x, force, applied=None, *, q: int | str = "auto", eps="auto",
@@ -175,14 +176,23 @@ class LogPosterior:
 
     def loglik_records(self, theta) -> np.ndarray:
         """(W, n_records) log-likelihood of each record (no prior check)."""
+        return self.loglik_and_stats(theta)[0]
+
+    def loglik_and_stats(self, theta) -> tuple[np.ndarray, np.ndarray]:
+        """(W, n_records) log-likelihood of each record and (W, n_records, N_STATS) the
+        sufficient statistics of its (prefiltered) residuals, from which
+        noisemodel.draw_noise_stats draws the record's noise parameters (no prior check)."""
         theta = np.atleast_2d(theta)
         off = self.space.offset(theta)
         out = np.empty((theta.shape[0], len(self.records)))
+        stats = np.empty((theta.shape[0], len(self.records), N_STATS))
         for j, rec in enumerate(self.records):
             e = noisemodel.prefilter(self.residuals(theta, rec, off), rec.noise_theta)
-            out[:, j] = noisemodel.log_marginal(e, **self.noise)
+            st = noisemodel.suff_stats(e)
+            out[:, j] = noisemodel.log_marginal_stats(st, rec.n, **self.noise)
+            stats[:, j, :] = np.column_stack(st)
         self.n_evals += theta.shape[0]
-        return out
+        return out, stats
 
     def residuals(self, theta, rec: FitRecord, off=None) -> np.ndarray:
         """Residuals y - F - offset (W, N) of one record."""
@@ -190,16 +200,21 @@ class LogPosterior:
         off = self.space.offset(theta) if off is None else off
         return rec.y[None, :] - self.simulate(theta, rec) - off[:, None]
 
-    def __call__(self, theta) -> np.ndarray:
+    def __call__(self, theta, stats: bool = False) -> np.ndarray:
+        """With stats=True, each row also carries every record's residual sufficient statistics
+        after the log-likelihoods (n_records x N_STATS columns, record by record)."""
         theta = np.atleast_2d(theta)
         lp = self.space.log_prior(theta)
-        res = np.full((theta.shape[0], 1 + len(self.records)), -np.inf)
+        R = len(self.records)
+        res = np.full((theta.shape[0], 1 + R * (1 + N_STATS * stats)), -np.inf)
         ok = np.isfinite(lp)
         if ok.any():
-            ll = self.loglik_records(theta[ok])
+            ll, st = self.loglik_and_stats(theta[ok])
             ll = np.where(np.isfinite(ll), ll, -np.inf)
-            res[ok, 1:] = ll
+            res[ok, 1:1 + R] = ll
             res[ok, 0] = lp[ok] + ll.sum(axis=1)
+            if stats:
+                res[ok, 1 + R:] = st.reshape(st.shape[0], -1)
         res[:, 1:] = np.where(np.isfinite(res[:, 1:]), res[:, 1:], -1e300)  # finite blobs
         res[:, 0] = np.where(np.isnan(res[:, 0]), -np.inf, res[:, 0])
         return res
@@ -213,16 +228,18 @@ class UnboundedPosterior:
     layout as LogPosterior, column 0 = log p(theta(u) | data) + log |d theta / d u|, the density
     of u. Every finite u maps strictly inside the prior box."""
 
-    def __init__(self, logpost: LogPosterior):
+    def __init__(self, logpost: LogPosterior, stats: bool = False):
         self.logpost = logpost
         self.space = logpost.space
+        self.stats = stats          # also the records' residual statistics (LogPosterior.__call__)
 
     def __call__(self, u) -> np.ndarray:
         u = np.atleast_2d(np.asarray(u, dtype=float))
-        res = np.full((u.shape[0], 1 + len(self.logpost.records)), -np.inf)
+        res = np.full((u.shape[0], 1 + len(self.logpost.records) * (1 + N_STATS * self.stats)),
+                      -np.inf)
         ok = np.all(np.isfinite(u), axis=1)
         if ok.any():
-            r = self.logpost(self.space.from_u(u[ok]))
+            r = self.logpost(self.space.from_u(u[ok]), stats=self.stats)
             r[:, 0] = r[:, 0] + self.space.log_jac_u(u[ok])
             res[ok] = r
         res[:, 1:] = np.where(np.isfinite(res[:, 1:]), res[:, 1:], -1e300)

@@ -108,6 +108,9 @@ def noise_paths(sd_ar, phi, sd_white, n: int, rng: np.random.Generator) -> np.nd
     return out
 
 
+STATS = ("S0", "S1", "S2", "e0sq")      # suff_stats, in this order
+
+
 def suff_stats(e: np.ndarray):
     """Sufficient statistics of residuals e (W, N): S0, S1, S2, e0^2 (each (W,))."""
     S0 = np.einsum("ij,ij->i", e, e)
@@ -133,8 +136,13 @@ def _logsumexp_rows(a: np.ndarray) -> np.ndarray:
 def log_marginal(e: np.ndarray, kind: str, sigma_bounds: tuple[float, float],
                  sigma_fixed: float | None = None, phi_fixed: float | None = None) -> np.ndarray:
     """log p(e | model) with the record's noise parameters integrated out (or fixed). (W,)"""
-    W, N = e.shape
-    S0, S1, S2, e0sq = suff_stats(e)
+    return log_marginal_stats(suff_stats(e), e.shape[1], kind, sigma_bounds, sigma_fixed, phi_fixed)
+
+
+def log_marginal_stats(stats, N: int, kind: str, sigma_bounds: tuple[float, float],
+                       sigma_fixed: float | None = None, phi_fixed: float | None = None) -> np.ndarray:
+    """log_marginal from the residuals' sufficient statistics (suff_stats) and their length N."""
+    S0, S1, S2, e0sq = stats
     if kind == "iid":
         phi_fixed = 0.0
     if phi_fixed is not None:
@@ -159,8 +167,15 @@ def draw_noise(e: np.ndarray, kind: str, rng: np.random.Generator,
                sigma_fixed: float | None = None, phi_fixed: float | None = None):
     """One draw of (sigma_noise, noise_phi) per row of residuals e (W, N) from their conditional
     posterior given the model parameters."""
-    W, N = e.shape
-    S0, S1, S2, e0sq = suff_stats(e)
+    return draw_noise_stats(suff_stats(e), e.shape[1], kind, rng, sigma_fixed, phi_fixed)
+
+
+def draw_noise_stats(stats, N: int, kind: str, rng: np.random.Generator,
+                     sigma_fixed: float | None = None, phi_fixed: float | None = None):
+    """draw_noise from the residuals' sufficient statistics (suff_stats, each (W,)) and length N:
+    the sampler stores them with every step, so the draws need no second simulation."""
+    S0, S1, S2, e0sq = (np.asarray(a, float) for a in stats)
+    W = S0.shape[0]
     if kind == "iid":
         phi_fixed = 0.0
     if phi_fixed is not None:

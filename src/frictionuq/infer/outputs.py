@@ -24,16 +24,16 @@ def posterior_draws(logpost, res, rng) -> dict:
            "fixed": dict(sp.fixed)}
     sig = np.empty((W * D, len(logpost.records)))
     phi = np.empty_like(sig)
+    # the residuals' sufficient statistics at every draw, stored by the sampler (D, W, R, S)
+    stats = np.transpose(res.noise_stats, (1, 0, 2, 3)).reshape(W * D, len(logpost.records), -1)
     for j, rec in enumerate(logpost.records):
-        e = np.concatenate([logpost.residuals(flat[k:k + 512], rec) for k in range(0, len(flat), 512)])
-        s_g, phi[:, j] = noisemodel.draw_noise(noisemodel.prefilter(e, rec.noise_theta), rng=rng,
-                                               **_draw_args(logpost))
+        s_g, phi[:, j] = noisemodel.draw_noise_stats(stats[:, j, :].T, rec.n, rng=rng,
+                                                     **_draw_args(logpost))
         sig[:, j] = noisemodel.marginal_sd(s_g, phi[:, j], rec.noise_theta)
     out["sigma_noise"] = sig.reshape(W, D, -1)
     out["noise_phi"] = phi.reshape(W, D, -1)
     out["log_prob"] = res.log_prob.T
-    out["loglik_records"] = np.transpose(res.blobs, (1, 0, 2)) if res.blobs.ndim == 3 else \
-        res.blobs.T[:, :, None]
+    out["loglik_records"] = np.transpose(res.blobs, (1, 0, 2))
     return out
 
 

@@ -54,7 +54,7 @@ import emcee
 import numpy as np
 
 from .. import azadapter
-from .likelihood import LogPosterior, UnboundedPosterior
+from .likelihood import N_STATS, LogPosterior, UnboundedPosterior
 from .optimize import find_map, gauss_newton_cov
 from .priors import RecordScales
 
@@ -103,6 +103,9 @@ class SampleResult:
     burn_in_steps: int = 0       # steps of the (unstored) burn-in phase
     history: list = field(default_factory=list)
     map_start: str = "search"    # "search" (find_map's multi-start) or "given" (polished from a start)
+    # (draws, walkers, n_records, N_STATS): each record's residual sufficient statistics at
+    # every kept draw (emcee blobs; outputs draws the noise parameters from them)
+    noise_stats: np.ndarray | None = None
 
 
 def _nwalkers(cfg: SamplerConfig, ndim: int) -> int:
@@ -261,7 +264,8 @@ class OpenHDFBackend(emcee.backends.HDFBackend):
             self._handle = None
 
 
-COORDS = "frictionuq unbounded logit-of-box coordinates v2 (independence proposal in attrs)"
+COORDS = ("frictionuq unbounded logit-of-box coordinates v2 (independence proposal in attrs); "
+          "blobs v3: per-record log-likelihood, then per-record residual statistics")
 
 
 def _open_backend(backend_path, nw, ndim, resume, log=None):
@@ -333,7 +337,7 @@ def sample(logpost: LogPosterior, scales: RecordScales, seed: int,
     nw = _nwalkers(cfg, ndim)
     t0 = time.perf_counter()
     rng = np.random.default_rng(seed)
-    target = UnboundedPosterior(logpost)
+    target = UnboundedPosterior(logpost, stats=True)
     backend, resumed = _open_backend(backend_path, nw, ndim, resume, log)
 
     theta_map, lp_map, map_info = find_map(logpost, scales, rng, cfg.n_random_starts,
@@ -431,8 +435,11 @@ def _result(sampler, cfg, sp, n_done, converged, theta_map, lp_map, logpost, t0,
     theta = sp.from_u(u)
     lp_u = sampler.get_log_prob(discard=burn, thin=thin)
     lp_theta = lp_u - sp.log_jac_u(u.reshape(-1, ndim)).reshape(lp_u.shape)
+    blobs = sampler.get_blobs(discard=burn, thin=thin)
+    R = len(logpost.records)
     return SampleResult(
-        chain=theta, log_prob=lp_theta, blobs=sampler.get_blobs(discard=burn, thin=thin),
+        chain=theta, log_prob=lp_theta, blobs=blobs[..., :R],
+        noise_stats=blobs[..., R:].reshape(blobs.shape[:2] + (R, N_STATS)),
         tau=np.asarray(tau, float), n_steps=n_done, burn=burn, thin=thin,
         acceptance=float(np.mean(sampler.acceptance_fraction)), converged_tau=converged,
         theta_map=theta_map, log_prob_map=lp_map, n_evals=int(logpost.n_evals),
