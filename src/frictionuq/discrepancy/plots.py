@@ -53,7 +53,8 @@ def _view_panel(ax, view: dict):
     ax.plot(c, _arr(b["mean_fwd"]), ":", color="C2", lw=1, label="data - model, forward (d=+1)")
     ax.plot(c, _arr(b["mean_bwd"]), ":", color="C1", lw=1, label="data - model, backward (d=-1)")
     verdict = "SIGNIFICANT" if view["significant"] else "not significant"
-    ax.set_title(f"{view['feature']}: T = {view['statistic']:.3g}, p_adj = {view['p_adjusted']:.3g} "
+    T = "T_trend" if view.get("test", "binned") != "binned" else "T"
+    ax.set_title(f"{view['feature']}: {T} = {view['statistic']:.3g}, p_adj = {view['p_adjusted']:.3g} "
                  f"({verdict})", fontsize=9, color=SIGNIFICANT if view["significant"] else "black")
     ax.set_xlabel(label)
     ax.set_ylabel("residual (N)")
