@@ -63,17 +63,20 @@ def main(argv=None) -> int:
                               for n, v in ans["parameters"].items() if n in doc["effect_parameters"]]
                         row["params_inside"] = f"{sum(ok)}/{len(ok)}"
                     best = doc["candidates"][0] if doc["candidates"] else {}
-                    row["best"] = f"{best.get('effect')} {best.get('elpd_gain', 0):+.1f}"
+                    g = best.get("elpd_gain")
+                    row["best"] = f"{best.get('effect')} " + (f"{g:+.1f}" if g is not None else
+                                                             f"MAP {best.get('map_gain', 0):+.1f}")
                     row["per_unit"] = {c["effect"]: [round(g, 1) for g in c["gain_per_unit"]]
                                        for c in doc["candidates"][:2]}
+                    row["map_gain"] = {c["effect"]: round(c["map_gain"], 1) for c in doc["candidates"][:2]}
                     rows.append(row)
                     print(f"{dev:<5} hidden {row['hidden']:<19} named {row['named']:<19} "
                           f"best {row['best']:<28} RMSE {row['rmse_before']:8.1f} -> "
                           f"{row['rmse_after']:8.1f} N (noise {row['noise']:.1f} N) "
                           f"{row.get('params_inside', ''):>5} {secs:6.1f} s", flush=True)
                     if a.verbose:
-                        print(f"      gain per held-out unit (nats): {row['per_unit']}; "
-                              f"{doc['reason']}", flush=True)
+                        print(f"      gain per held-out unit (nats): {row['per_unit']}; MAP gain on "
+                              f"all units: {row['map_gain']}; {doc['reason']}", flush=True)
     hits = sum(r["named"] == r["hidden"] for r in rows if r["hidden"] != "none")
     n_eff = sum(r["hidden"] != "none" for r in rows)
     fa = sum(r["named"] != "none" for r in rows if r["hidden"] == "none")

@@ -17,6 +17,7 @@ from frictionuq.discrepancy.hidden import hidden_campaign
 @pytest.mark.parametrize("device, effect, seed, refit", [
     ("brfd", "reversal_hump", 7, False),
     ("brfd", None, 7, False),
+    ("brfd", None, 12, False),     # a false alarm before the rule's in-sample condition (e)
     ("mfd", "thermal_fade", 11, True),
     ("mfd", "takeup_overshoot", 7, False),      # the effect beyond the spec (opt-in candidate)
 ])
@@ -77,6 +78,7 @@ def test_discover_names_the_hidden_effect_or_none(tmp_path, device, effect, seed
         page = render_discrepancy_page(tmp_path / "out")
         html = page.read_text()
         assert f"Named effect: {effect}" in html and "loops" in html and "RMSE at its MAP (N)" in html
+        assert "MAP gain on all units (nats)" in html
         assert html.count("data:image/png;base64") >= 2 * len(ans["tests"]) + len(ans["tests"])
 
 

@@ -10,13 +10,14 @@ from frictionuq.discrepancy import screen
 from frictionuq.discrepancy.hidden import hidden_campaign
 
 
-def _row(effect, gains, n_params=2):
+def _row(effect, gains, n_params=2, map_gain=None):
     import numpy as np
     from frictionuq.infer.compare import elpd_total
     t = elpd_total(gains)
     return {"effect": effect, "elpd_gain": t["elpd"], "elpd_gain_se": t["se"],
             "gain_per_unit": list(gains), "min_unit_gain": float(np.min(gains)),
-            "n_params": n_params, "rmse_map": 1.0}
+            "n_params": n_params, "rmse_map": 1.0,
+            "map_gain": float(np.sum(gains)) if map_gain is None else map_gain}
 
 
 def test_decision_rule():
@@ -53,6 +54,30 @@ def test_decision_rule():
     assert screen.decide([_row("thermal_fade", [120.0, 110.0, 130.0, 125.0, 115.0])])[0] == "thermal_fade"
     assert screen.decide([_row("thermal_fade", [400.0, 6.0, 6.0, 7.0, 10.0])])[0] == "none"
     assert screen.decide([])[0] == "none"
+    # held-out gains the fit to all units does not show (the clean BRFD campaign of seed 12:
+    # Laplace curvature at two points of a ridge): not named; the same gains with the MAP: named
+    name, why = screen.decide([_row("eccentricity", [10.2, 23.6, -2.2], 3, map_gain=3.6)])
+    assert name == "none" and "MAP +3.6" in why
+    assert screen.decide([_row("eccentricity", [10.2, 23.6, -2.2], 3, map_gain=40.0)])[0] == "eccentricity"
+
+
+def test_stage_one_candidates_are_listed_but_never_named():
+    """A candidate whose MAP on all units is not > 20 nats above the baseline's is not scored held
+    out (screen.py, stage 1): rank lists it after the scored ones with elpd_gain None, and
+    decide never names it nor lets it block a scored candidate."""
+    def model(lp, ll=None):
+        m = {"log_prob_map": lp, "rmse_map": 1.0}
+        return m if ll is None else {**m, "heldout_loglik": ll}
+    levels = [{"models": {"baseline": model(-1000.0, [-300.0, -400.0, -300.0]),
+                          "eccentricity": {**model(-990.0), "screened_out": True},
+                          "thermal_fade": model(-700.0, [-200.0, -300.0, -250.0])}}]
+    ranked = screen.rank(levels)
+    assert [r["effect"] for r in ranked] == ["thermal_fade", "eccentricity"]
+    assert ranked[1]["elpd_gain"] is None and ranked[1]["map_gain"] == 10.0
+    assert ranked[0]["elpd_gain"] == 250.0 and ranked[0]["map_gain"] == 300.0
+    assert screen.decide(ranked, levels)[0] == "thermal_fade"
+    name, why = screen.decide(ranked[1:], levels)
+    assert name == "none" and "eccentricity, +10.0" in why
 
 
 def test_candidates_are_the_spec_library_unless_asked(tmp_path):

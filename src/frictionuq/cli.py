@@ -129,9 +129,14 @@ def _cmd_discover(a):
     d = discover(a.campaign, a.out, cfg, seed=a.seed, refit=not a.no_refit,
                  extra_effects=tuple(a.extra_effect or ()),
                  log=lambda m: print(m, file=sys.stderr))
-    print(f"{'candidate':<20}{'ELPD gain (nats)':>18}{'SE':>10}{'RMSE after (N)':>16}")
+    print(f"{'candidate':<20}{'ELPD gain (nats)':>18}{'SE':>10}{'MAP gain (nats)':>17}"
+          f"{'RMSE after (N)':>16}")
     for c in d["candidates"]:
-        print(f"{c['effect']:<20}{c['elpd_gain']:18.1f}{c['elpd_gain_se']:10.1f}{c['rmse_after']:16.4g}")
+        if c["screened_out"]:      # stage 1: no better in-sample fit, not scored held out
+            gain, se = f"{'not scored':>18}", f"{'':>10}"
+        else:
+            gain, se = f"{c['elpd_gain']:18.1f}", f"{c['elpd_gain_se']:10.1f}"
+        print(f"{c['effect']:<20}{gain}{se}{c['map_gain']:17.1f}{c['rmse_after']:16.4g}")
     print(f"named effect: {d['named_effect']} ({d['reason']})")
     print(f"RMSE before {d['rmse_before']:.4g} N, after {d['rmse_after']:.4g} N"
           + (f", noise scale {d['noise_scale']:.4g} N" if d["noise_scale"] else ""))

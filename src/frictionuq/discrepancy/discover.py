@@ -128,7 +128,8 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
            "decision_rule": screen.RULE, "extra_effects": list(extra_effects),
            "candidates": [{"effect": r["effect"], "elpd_gain": r["elpd_gain"],
                            "elpd_gain_se": r["elpd_gain_se"], "rmse_after": r["rmse_map"],
-                           "gain_per_unit": r["gain_per_unit"], "n_params": r["n_params"]}
+                           "gain_per_unit": r["gain_per_unit"], "map_gain": r["map_gain"],
+                           "screened_out": r["screened_out"], "n_params": r["n_params"]}
                           for r in ranked],
            "candidates_screened": [n for n in levels[0]["models"] if n != "baseline"],
            "rmse_before": rmse_before, "rmse_after": rmse_before, "noise_scale": None,

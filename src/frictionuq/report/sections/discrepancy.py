@@ -22,11 +22,13 @@ def build(ctx, folder=None) -> list[dict]:
            B.para(f"RMSE before (baseline 3-stage, at its MAP): {num(d['rmse_before'])} N; after: "
                   f"{num(d['rmse_after'])} N"
                   + (f"; estimated noise scale {num(d['noise_scale'])} N." if d.get("noise_scale") else "."))]
-    rows = [(c["effect"], num(c["elpd_gain"]), num(c["elpd_gain_se"]),
-             ", ".join(num(g) for g in c["gain_per_unit"]), num(c["rmse_after"]), c["n_params"])
+    rows = [(c["effect"], "not scored (MAP gain too small)" if c.get("screened_out") else num(c["elpd_gain"]),
+             num(c["elpd_gain_se"]), ", ".join(num(g) for g in c["gain_per_unit"]) or num(None),
+             num(c["map_gain"]) if "map_gain" in c else "-", num(c["rmse_after"]), c["n_params"])
             for c in d["candidates"]]
     out.append(B.html(table(["candidate effect", "held-out ELPD gain (nats)", "SE (nats)",
-                             "gain per held-out unit (nats)", "RMSE at its MAP (N)", "parameters"],
+                             "gain per held-out unit (nats)", "MAP gain on all units (nats)",
+                             "RMSE at its MAP (N)", "parameters"],
                             rows, caption="candidates, ranked")))
     if d.get("effect_parameters"):
         out.append(B.html(table(["parameter", "mean", "2.5 %", "97.5 %", "unit"],
