@@ -41,6 +41,7 @@ already made smooth).
 """
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass
 from fractions import Fraction
@@ -93,6 +94,36 @@ def integrate(a: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     return v, x
 
 
+def legfit_exact(t: np.ndarray, y: np.ndarray, degree: int) -> np.ndarray:
+    """Least-squares Legendre coefficients (numpy.polynomial.legendre order) of y on t in
+    [-1, 1], from the normal equations with correctly rounded sums (math.fsum) and Gaussian
+    elimination in Python floats: the same bits on every CPU. numpy's polyfit goes through
+    LAPACK, whose OpenBLAS kernels are chosen per CPU: the shipped twins' earthquake drives
+    differed in the last printed digit between an Intel (SkylakeX kernels) and an AMD EPYC
+    machine (measured 2026-11-25). In the Legendre basis the normal equations of a uniform grid
+    are nearly diagonal, so forming them loses nothing."""
+    t = np.asarray(t, float)
+    y = np.asarray(y, float)
+    n = degree + 1
+    P = [np.ones_like(t), t.copy()]
+    for k in range(1, degree):
+        P.append(((2 * k + 1) * t * P[k] - k * P[k - 1]) / (k + 1))
+    P = P[:n]
+    A = [[math.fsum(P[i] * P[j]) for j in range(n)] for i in range(n)]
+    b = [math.fsum(P[i] * y) for i in range(n)]
+    for k in range(n):                    # Gaussian elimination with partial pivoting
+        p = max(range(k, n), key=lambda r: abs(A[r][k]))
+        A[k], A[p], b[k], b[p] = A[p], A[k], b[p], b[k]
+        for r in range(k + 1, n):
+            f = A[r][k] / A[k][k]
+            A[r] = [A[r][j] - f * A[k][j] for j in range(n)]
+            b[r] -= f * b[k]
+    c = [0.0] * n
+    for k in reversed(range(n)):
+        c[k] = (b[k] - math.fsum(A[k][j] * c[j] for j in range(k + 1, n))) / A[k][k]
+    return np.array(c)
+
+
 def velocity_baseline(a: np.ndarray, dt: float, degree: int = 2) -> np.ndarray:
     """Acceleration minus the derivative of the least-squares polynomial of degree `degree`
     fitted to its velocity (Boore & Bommer 2005; degree 2 removes a constant and a
@@ -101,10 +132,10 @@ def velocity_baseline(a: np.ndarray, dt: float, degree: int = 2) -> np.ndarray:
         raise ValueError(f"poly_degree must be an integer in 1..6, got {degree!r}")
     v, _ = integrate(a, dt)
     t = np.arange(a.size) * dt
-    tau = t / t[-1]                                   # scaled for a well-conditioned fit
-    coef = np.polynomial.polynomial.polyfit(tau, v, int(degree))
-    dcoef = np.polynomial.polynomial.polyder(coef) / t[-1]
-    return a - np.polynomial.polynomial.polyval(tau, dcoef)
+    s = 2.0 * t / t[-1] - 1.0                         # [-1, 1]: Legendre basis
+    L = np.polynomial.legendre
+    coef = legfit_exact(s, v, int(degree))
+    return a - L.legval(s, L.legder(coef)) * (2.0 / t[-1])
 
 
 def baseline_correct(record: GroundMotion, f_corner: float = 0.1, order: int = 4,
