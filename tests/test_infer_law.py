@@ -124,3 +124,27 @@ def test_zero_force_level_is_left_out_of_the_law(tmp_path):
     assert doc["excluded_levels"][0]["id"].startswith("applied-0")
     draws, _, _ = law.draws_at(d, 150.0, 100, np.random.default_rng(0))
     assert np.all(np.isfinite(draws["fc_fwd"]))
+
+
+def test_scatter_normals_follow_the_levels_departures_from_their_laws():
+    """Parameters whose levels depart from their laws together get the same scatter normal
+    (correlation 1 in the departures); a parameter that departs on its own gets its own.
+    Six constant-law levels with known departures; fixed seed, deterministic."""
+    rng = np.random.default_rng(4)
+    dep = rng.standard_normal(6)
+    other = rng.standard_normal(6)
+    levels = [{"applied": 10.0 * (i + 1),
+               "draws": {"fc_fwd": np.exp(np.full(50, dep[i])), "fs_fwd": np.exp(np.full(50, 2 * dep[i])),
+                         "k2": np.exp(np.full(50, other[i]))}} for i in range(6)]
+    laws = {n: {"family": "constant", "log_space": True, "beta_draws": [[0.0]], "tau_draws": [1.0]}
+            for n in ("fc_fwd", "fs_fwd", "k2")}
+    z = law.scatter_normals({"laws": laws}, levels, ["fc_fwd", "fs_fwd", "k2"], 4000,
+                            np.random.default_rng(0))
+    assert np.allclose(z[:, 0], z[:, 1], atol=1e-9)
+    r = np.corrcoef(z.T)
+    assert abs(r[0, 2] - np.corrcoef(dep, other)[0, 1]) < 0.1     # the departures' correlation
+    assert np.allclose(z.std(axis=0), 1.0, atol=0.05)
+    # with too few levels to estimate a correlation: independent normals
+    z2 = law.scatter_normals({"laws": laws}, levels[:2], ["fc_fwd", "fs_fwd", "k2"], 4000,
+                             np.random.default_rng(0))
+    assert abs(np.corrcoef(z2[:, 0], z2[:, 1])[0, 1]) < 0.1

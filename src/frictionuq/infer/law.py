@@ -287,6 +287,38 @@ def law_values(law: dict, name: str, applied_si, with_scatter: bool, rng) -> np.
     return mu
 
 
+def scatter_normals(law: dict, levels: list[dict], names: list[str], n: int, rng) -> np.ndarray:
+    """(n, len(names)) standard normals for the laws' between-level scatter terms, correlated
+    as the fitted levels' departures from their laws: per level and parameter, the level's
+    posterior mean (in the law's space) minus the law's centre at that level's force (posterior
+    mean of the law's coefficients); their sample correlation over the levels (eigenvalues
+    clipped at 0: with fewer levels than parameters it is singular, and is sampled as such).
+    Fewer than three levels with finite departures: independent normals."""
+    m = len(names)
+    eps = rng.standard_normal((n, m))
+    res = []
+    for Lv in levels:
+        row = []
+        for name in names:
+            L = law["laws"][name]
+            v = Lv["draws"][name]
+            mean = float(np.mean(np.log(v) if L["log_space"] else v))
+            beta = np.mean(np.asarray(L["beta_draws"], float), axis=0)[None, :]
+            row.append(mean - float(_mean_fn(L["family"], beta, [Lv["applied"]], L["log_space"])[0, 0]))
+        res.append(row)
+    res = np.asarray(res, float)
+    res = res[np.all(np.isfinite(res), axis=1)]
+    if res.shape[0] < 3 or m < 2:
+        return eps
+    sd = res.std(axis=0)
+    C = np.eye(m)
+    ok = sd > 0
+    if ok.sum() >= 2:
+        C[np.ix_(ok, ok)] = np.corrcoef(res[:, ok].T)
+    w, V = np.linalg.eigh(C)
+    return eps @ (V * np.sqrt(np.clip(w, 0.0, None))).T
+
+
 def draws_at(fit_dir, applied_si: float, n: int, rng):
     """Parameter draws (name -> (n,) array, SI) at an applied force that need not have been
     tested, with the fit's model and effects: (draws, model, effects).
@@ -297,7 +329,13 @@ def draws_at(fit_dir, applied_si: float, n: int, rng):
         p_new = p_draw - mean_near + law_s(a_new) + tau_s z,
     i.e. the law's centre at the new force (a law posterior draw s), its between-level scatter,
     and the nearest level's within-level spread. At a fitted level this is close to, but wider
-    than, that level's own posterior (the scatter term); predict uses the posterior there."""
+    than, that level's own posterior (the scatter term); predict uses the posterior there. The
+    scatter's normals z are correlated across parameters as the fitted levels' departures from
+    their laws are (scatter_normals), and each draw takes the law draws (s, tau) at one shared
+    rank of tau for every parameter: a level whose friction lies above the law has all its
+    friction forces above it, and independent z and tau gave implausible combinations
+    (fs_fwd / fc_fwd from 0.92 to 1.40 where every level had 1.20)."""
+
     law = load_law(fit_dir)
     levels, _ = level_draws(fit_dir)
     levels = [L for L in levels if L["applied"] > 0]
@@ -307,17 +345,20 @@ def draws_at(fit_dir, applied_si: float, n: int, rng):
     near = min(levels, key=lambda L: abs(math.log(L["applied"]) - math.log(a)))
     S = next(iter(near["draws"].values())).size
     idx = rng.choice(S, size=n, replace=S < n)
+    names = [name for name in law["laws"] if name in near["draws"]]
+    Z = dict(zip(names, scatter_normals(law, levels, names, n, rng).T))
+    U = rng.random(n)       # one rank of the scatter's size per draw, shared by the parameters
     out = {}
-    for name, L in law["laws"].items():
-        if name not in near["draws"]:
-            continue
+    for name in names:
+        L = law["laws"][name]
         d = near["draws"][name][idx]
         tr = np.log(d) if L["log_space"] else d
         mean_near = float(np.mean(np.log(near["draws"][name]) if L["log_space"] else near["draws"][name]))
-        k = rng.integers(0, len(L["tau_draws"]), size=n)
+        order = np.argsort(np.asarray(L["tau_draws"], float), kind="stable")
+        k = order[np.minimum((U * order.size).astype(int), order.size - 1)]
         beta = np.asarray(L["beta_draws"], float)[k]
         centre = _mean_fn(L["family"], beta, [a], L["log_space"])[:, 0]
-        new = tr - mean_near + centre + np.asarray(L["tau_draws"])[k] * rng.standard_normal(n)
+        new = tr - mean_near + centre + np.asarray(L["tau_draws"])[k] * Z[name]
         v = np.exp(new) if L["log_space"] else new
         # the scatter term can carry a draw past the prior box (or the physical bounds): clip
         lo, hi = near["bounds"].get(name, (-np.inf, np.inf))
