@@ -296,17 +296,15 @@ def scatter_normals(law: dict, levels: list[dict], names: list[str], n: int, rng
     Fewer than three levels with finite departures: independent normals."""
     m = len(names)
     eps = rng.standard_normal((n, m))
-    res = []
-    for Lv in levels:
-        row = []
-        for name in names:
-            L = law["laws"][name]
+    applied = [Lv["applied"] for Lv in levels]
+    res = np.empty((len(levels), m))
+    for j, name in enumerate(names):
+        L = law["laws"][name]
+        beta = np.mean(np.asarray(L["beta_draws"], float), axis=0)[None, :]
+        centre = _mean_fn(L["family"], beta, applied, L["log_space"])[0]
+        for i, Lv in enumerate(levels):
             v = Lv["draws"][name]
-            mean = float(np.mean(np.log(v) if L["log_space"] else v))
-            beta = np.mean(np.asarray(L["beta_draws"], float), axis=0)[None, :]
-            row.append(mean - float(_mean_fn(L["family"], beta, [Lv["applied"]], L["log_space"])[0, 0]))
-        res.append(row)
-    res = np.asarray(res, float)
+            res[i, j] = float(np.mean(np.log(v) if L["log_space"] else v)) - centre[i]
     res = res[np.all(np.isfinite(res), axis=1)]
     if res.shape[0] < 3 or m < 2:
         return eps

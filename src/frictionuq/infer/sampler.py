@@ -237,7 +237,7 @@ def proposal_change(old, new) -> tuple[float, float]:
         ratio = np.where(sd0 > 0, sd1 / sd0, np.inf)
         shift = np.abs(new[0] - old[0]) / sd1
     ratio = np.where(np.isfinite(ratio) & (ratio > 0), np.maximum(ratio, 1.0 / ratio), np.inf)
-    return float(np.max(ratio)), float(np.nanmax(np.where(np.isfinite(shift), shift, np.inf)))
+    return float(np.max(ratio)), float(np.max(np.where(np.isfinite(shift), shift, np.inf)))
 
 
 def _moves(cfg: SamplerConfig, proposal=None):
