@@ -13,10 +13,13 @@ until the chain passes the convergence criteria.
 * Burn-in (not stored, always discarded): at least `burn_rounds` rounds of `burn_steps` steps,
   more (up to `burn_max_rounds`) while the median walker's log-posterior still rises by more
   than sqrt(D/2) per round, walkers are stuck, or the ensemble is still spreading: the proposal
-  fitted to the round (below) has a parameter sd more than `burn_stable` times (or less than
-  1 / `burn_stable` times) the previous round's, or a mean moved by more than `burn_shift` sd
-  (function burn_in; the BRFD twin's 267 N level needed five rounds, and with the old two its
-  independence move was accepted 0.9 % of the time and tau was 149 steps). After each round
+  fitted to the round (below) has a parameter width (half its 15.9-84.1 % range) more than
+  `burn_stable` times (or less than 1 / `burn_stable` times) the previous round's, or a median
+  moved by more than `burn_shift` widths (function burn_in; the BRFD twin's 267 N level needed
+  five rounds of 500 steps, and with the old two its independence move was accepted 0.9 % of the
+  time and tau was 149 steps). Rounds of 250 steps rather than 500: the proposal, inflated by
+  1.25x, is refitted twice as often, so a start ball too narrow widens in fewer steps (twin 267 N:
+  seven rounds, 1,750 steps, against five rounds, 2,500 steps; 109 s against 140 s in all). After each round
   the walkers are re-initialised by drawing states from the second half of that round, pooled
   over the walkers that are not stuck (a walker whose mean log-posterior lies more than
   max(10, 3 sqrt(D/2)) below the median walker's is stuck). The Gauss-Newton ball is far too
@@ -26,9 +29,9 @@ until the chain passes the convergence criteria.
 * Moves: differential evolution (70 %), DE with gamma = 1 (10 %: the "mode-jumping" step of
   ter Braak 2006) and DE snooker (20 %) (ter Braak & Vrugt 2008; emcee docs) in the first
   burn-in round. From the second round on, half of the steps are an independence
-  Metropolis-Hastings move (IndependenceMove: a multivariate t, 5 degrees of freedom, fitted to
-  the previous burn-in round with its covariance inflated by 1.25^2, fixed for the whole stored
-  run and kept in the HDF5 file) and the rest DE (35 %), DE gamma = 1 (5 %) and snooker (10 %).
+  Metropolis-Hastings move (proposal.IndependenceMove: a multivariate t, 5 degrees of freedom,
+  on Johnson SU-Gaussianised marginals, fitted to the previous burn-in round with its covariance
+  inflated by 1.25^2, fixed for the whole stored run and kept in the HDF5 file) and the rest DE (35 %), DE gamma = 1 (5 %) and snooker (10 %).
   Why: the R-hat criterion treats each walker as a chain, so it needs every walker's own chain to
   hold about a hundred effective draws; with DE alone tau is 60-80 steps on a twin force level
   (R-hat still 1.014 after 12,000 steps), with the independence move a walker decorrelates in a
@@ -61,6 +64,7 @@ import numpy as np
 from .. import azadapter
 from .likelihood import N_STATS, LogPosterior, UnboundedPosterior
 from .optimize import find_map, gauss_newton_cov
+from .proposal import IndependenceMove, Proposal, proposal_change
 from .priors import RecordScales
 
 
@@ -71,8 +75,8 @@ class SamplerConfig:
     max_steps: int = 100000           # stored steps, after the burn-in phase
     min_steps: int = 1000
     burn_rounds: int = 2              # minimum burn-in rounds
-    burn_max_rounds: int = 10         # more while the walkers still climb or some are stuck
-    burn_steps: int = 500
+    burn_max_rounds: int = 20         # more while the walkers still climb or some are stuck
+    burn_steps: int = 250             # short rounds: the proposal is refitted (and widens) sooner
     burn_stable: float = 1.25         # ... and while the proposal still changes (proposal_change)
     burn_shift: float = 0.5
     discard_fraction: float = 0.25    # of the stored run, before the convergence checks
@@ -185,66 +189,16 @@ def _progress(cfg) -> bool:
     return sys.stderr.isatty() and os.environ.get("FRICTIONUQ_PROGRESS", "1") != "0"
 
 
-class IndependenceMove(emcee.moves.MHMove):
-    """Independence Metropolis-Hastings (emcee MHMove): every walker proposes a fresh point from
-    a fixed multivariate t (df degrees of freedom) with the given mean and covariance x scale^2,
-    accepted with the Hastings ratio p(x') q(x) / (p(x) q(x')). The proposal is fitted to the
-    burn-in phase and never changed during the stored run, so the chain keeps the posterior as
-    its stationary distribution. Where the posterior is close to the proposal (typical of a
-    well-determined fit in the sampler's unbounded coordinates) a walker decorrelates in a few
-    steps; where it is not, the move is mostly rejected and the DE moves do the work."""
-
-    def __init__(self, mean, cov, df: float = 5.0, scale: float = 1.25):
-        self.mean = np.asarray(mean, float)
-        d = self.mean.size
-        cov = np.asarray(cov, float) * scale**2
-        try:
-            self.L = np.linalg.cholesky(cov + 1e-12 * np.trace(cov) / d * np.eye(d))
-        except np.linalg.LinAlgError:
-            self.L = np.diag(np.sqrt(np.maximum(np.diag(cov), 1e-300)))
-        self.Linv = np.linalg.inv(self.L)
-        self.df = float(df)
-        super().__init__(self._propose, ndim=d)
-
-    # einsum, not BLAS: on a loaded 2-core machine OpenBLAS's thread wake-up made these tiny
-    # products (ndim x walkers) cost milliseconds each, a third of a whole fit
-    def _logq(self, x):
-        z = np.einsum("ij,nj->ni", self.Linv, x - self.mean)
-        return -0.5 * (self.df + self.mean.size) * np.log1p(np.einsum("ni,ni->n", z, z) / self.df)
-
-    def _propose(self, x0, random):
-        n, d = x0.shape
-        z = random.standard_normal((n, d))
-        g = random.chisquare(self.df, n)
-        x = self.mean + np.einsum("ij,nj->ni", self.L, z) * np.sqrt(self.df / g)[:, None]
-        return x, self._logq(x0) - self._logq(x)
-
-
-def fit_proposal(chain: np.ndarray, log_prob: np.ndarray):
-    """(mean, covariance) of a burn-in round's `pooled_states`."""
-    pool = pooled_states(chain, log_prob)[0]
-    return pool.mean(axis=0), np.atleast_2d(np.cov(pool.T))
-
-
-def proposal_change(old, new) -> tuple[float, float]:
-    """How much a burn-in round moved the independence proposal: (largest ratio of a
-    parameter's proposal sd, new over old or old over new; largest shift of a mean in units of
-    the new sd). inf when there was no old proposal."""
-    if old is None:
-        return float("inf"), float("inf")
-    sd0, sd1 = np.sqrt(np.diag(old[1])), np.sqrt(np.diag(new[1]))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.where(sd0 > 0, sd1 / sd0, np.inf)
-        shift = np.abs(new[0] - old[0]) / sd1
-    ratio = np.where(np.isfinite(ratio) & (ratio > 0), np.maximum(ratio, 1.0 / ratio), np.inf)
-    return float(np.max(ratio)), float(np.max(np.where(np.isfinite(shift), shift, np.inf)))
+def fit_proposal(chain: np.ndarray, log_prob: np.ndarray) -> Proposal:
+    """The independence proposal fitted to a burn-in round's `pooled_states`."""
+    return Proposal.fit(pooled_states(chain, log_prob)[0])
 
 
 def _moves(cfg: SamplerConfig, proposal=None):
     de = emcee.moves.DEMove() if cfg.de_gamma is None else emcee.moves.DEMove(gamma0=cfg.de_gamma)
     if proposal is None or not cfg.independence:
         return [(de, 0.7), (emcee.moves.DEMove(gamma0=1.0), 0.1), (emcee.moves.DESnookerMove(), 0.2)]
-    return [(IndependenceMove(*proposal), 0.5), (de, 0.35), (emcee.moves.DEMove(gamma0=1.0), 0.05),
+    return [(IndependenceMove(proposal), 0.5), (de, 0.35), (emcee.moves.DEMove(gamma0=1.0), 0.05),
             (emcee.moves.DESnookerMove(), 0.1)]
 
 
@@ -285,7 +239,8 @@ class OpenHDFBackend(emcee.backends.HDFBackend):
             self._handle = None
 
 
-COORDS = ("frictionuq unbounded logit-of-box coordinates v2 (independence proposal in attrs); "
+COORDS = ("frictionuq unbounded logit-of-box coordinates v2 (independence proposal v2, Johnson SU "
+          "marginals, in attrs); "
           "blobs v3: per-record log-likelihood, then per-record residual statistics")
 
 
@@ -324,16 +279,16 @@ def _store_proposal(backend, proposal):
     if backend is None or proposal is None:
         return
     with backend.open("a") as f:
-        f[backend.name].attrs["proposal_mean"] = proposal[0]
-        f[backend.name].attrs["proposal_cov"] = proposal[1]
+        for k, v in proposal.to_attrs().items():
+            f[backend.name].attrs[k] = v
 
 
 def _load_proposal(backend):
     with backend.open() as f:
         a = f[backend.name].attrs
-        if "proposal_mean" not in a:
+        if "proposal_marginals" not in a:
             return None
-        return np.array(a["proposal_mean"]), np.array(a["proposal_cov"])
+        return Proposal.from_attrs(a)
 
 
 def check(chain: np.ndarray, cfg: SamplerConfig) -> dict:
@@ -354,7 +309,7 @@ def burn_in(target, state: np.ndarray, cfg: SamplerConfig, seed: int, rng, log=N
     posterior along a parameter (BRFD twin 267 N: d3 at 0.009 of its posterior sd), and a
     proposal fitted before the ensemble has spread is rejected almost always (measured: 0.9 %
     acceptance, tau 149 steps, against 20 % and tau 36 with this rule).
-    Returns (positions, proposal (mean, cov), steps run)."""
+    Returns (positions, proposal.Proposal, steps run)."""
     log = log or (lambda msg: None)
     nw, ndim = state.shape
     proposal, prev, steps = None, -np.inf, 0
@@ -364,7 +319,7 @@ def burn_in(target, state: np.ndarray, cfg: SamplerConfig, seed: int, rng, log=N
         bs.run_mcmc(state, cfg.burn_steps, progress=_progress(cfg), skip_initial_state_check=True)
         lpc = bs.get_log_prob()
         new = fit_proposal(bs.get_chain(), lpc)
-        ratio, shift = proposal_change(proposal, new)
+        ratio, shift = proposal_change(proposal.spread if proposal else None, new.spread)
         proposal = new
         state, stuck = reinitialise(bs.get_chain(), lpc, nw, rng)
         steps += cfg.burn_steps
