@@ -88,6 +88,12 @@ class Proposal:
         return cls(np.zeros(d), np.zeros(d), np.zeros(d), np.ones(d), mean, cov, mean,
                    np.sqrt(np.diag(cov)), df, scale)
 
+    def __post_init__(self):
+        # per-coordinate constants of to_z / from_z, computed once (to_z runs twice per step)
+        self._su = self.b > 0
+        self._b = np.where(self._su, self.b, 1.0)
+        self._log_b, self._log_sc = np.log(self._b), np.log(self.sc)
+
     @property
     def spread(self) -> tuple[np.ndarray, np.ndarray]:
         return self.x_centre, self.x_width
@@ -95,16 +101,14 @@ class Proposal:
     def to_z(self, x) -> tuple[np.ndarray, np.ndarray]:
         """(z, log |dz/dx|) of a batch (n, D)."""
         y = (np.atleast_2d(x) - self.loc) / self.sc
-        su = self.b > 0
-        z = np.where(su, self.a + self.b * np.arcsinh(y), y)
-        lj = np.where(su, np.log(np.where(su, self.b, 1.0)) - 0.5 * np.log1p(y * y), 0.0) - np.log(self.sc)
+        z = np.where(self._su, self.a + self.b * np.arcsinh(y), y)
+        lj = np.where(self._su, self._log_b - 0.5 * np.log1p(y * y), 0.0) - self._log_sc
         return z, lj.sum(axis=1)
 
     def from_z(self, z) -> np.ndarray:
         z = np.atleast_2d(z)
-        su = self.b > 0
-        w = np.clip((z - self.a) / np.where(su, self.b, 1.0), -_SINH_MAX, _SINH_MAX)
-        return self.loc + self.sc * np.where(su, np.sinh(w), z)
+        w = np.clip((z - self.a) / self._b, -_SINH_MAX, _SINH_MAX)
+        return self.loc + self.sc * np.where(self._su, np.sinh(w), z)
 
     def to_attrs(self) -> dict:
         return {"proposal_marginals": np.vstack([self.a, self.b, self.loc, self.sc]),

@@ -31,7 +31,8 @@ until the chain passes the convergence criteria.
   burn-in round. From the second round on, half of the steps are an independence
   Metropolis-Hastings move (proposal.IndependenceMove: a multivariate t, 5 degrees of freedom,
   on Johnson SU-Gaussianised marginals, fitted to the previous burn-in round with its covariance
-  inflated by 1.25^2, fixed for the whole stored run and kept in the HDF5 file) and the rest DE (35 %), DE gamma = 1 (5 %) and snooker (10 %).
+  inflated by 1.25^2, fixed for the whole stored run and kept in the HDF5 file) and the rest DE
+  (35 %), DE gamma = 1 (5 %) and snooker (10 %).
   Why: the R-hat criterion treats each walker as a chain, so it needs every walker's own chain to
   hold about a hundred effective draws; with DE alone tau is 60-80 steps on a twin force level
   (R-hat still 1.014 after 12,000 steps), with the independence move a walker decorrelates in a
