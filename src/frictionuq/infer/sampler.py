@@ -19,9 +19,7 @@ until the chain passes the convergence criteria.
   five rounds of 500 steps, and with the old two its independence move was accepted 0.9 % of the
   time and tau was 149 steps). Rounds of 250 steps rather than 500: the proposal, inflated by
   1.25x, is refitted twice as often, so a start ball too narrow widens in fewer steps (twin 267 N:
-  seven rounds, 1,750 steps, against five rounds, 2,500 steps; 109 s against 140 s in all). A
-  round whose second half holds fewer than `burn_min_ess` effective draws does not count as
-  settled and the next one is twice as long; at most `burn_max_total` steps in all. After each round
+  seven rounds, 1,750 steps, against five rounds, 2,500 steps; 109 s against 140 s in all). After each round
   the walkers are re-initialised by drawing states from the second half of that round, pooled
   over the walkers that are not stuck (a walker whose mean log-posterior lies more than
   max(10, 3 sqrt(D/2)) below the median walker's is stuck). The Gauss-Newton ball is far too
@@ -82,8 +80,6 @@ class SamplerConfig:
     burn_steps: int = 250             # short rounds: the proposal is refitted (and widens) sooner
     burn_stable: float = 1.25         # ... and while the proposal still changes (proposal_change)
     burn_shift: float = 0.5
-    burn_min_ess: float = 200.0       # ... or its round held fewer effective draws (then doubled)
-    burn_max_total: int = 5000        # burn-in steps in all, at most
     discard_fraction: float = 0.25    # of the stored run, before the convergence checks
     de_gamma: float | None = None     # DE scale; None: 2.38 / sqrt(2 ndim) (emcee's default)
     tau_factor: float = 50.0
@@ -314,41 +310,32 @@ def burn_in(target, state: np.ndarray, cfg: SamplerConfig, seed: int, rng, log=N
     posterior along a parameter (BRFD twin 267 N: d3 at 0.009 of its posterior sd), and a
     proposal fitted before the ensemble has spread is rejected almost always (measured: 0.9 %
     acceptance, tau 149 steps, against 20 % and tau 36 with this rule).
-    The comparison is only as good as the round's pool: a round whose second half holds fewer
-    than cfg.burn_min_ess effective draws (walkers x steps / its largest tau) never counts as
-    settled, and the next round is twice as long (arts-d1 20 lb, tau about 100: rounds of 250
-    steps, 40 effective draws each, settled after three rounds on a proposal that was not yet
-    right, tau 133 against 99 after seven rounds of 500). At most cfg.burn_max_total steps in all.
     Returns (positions, proposal.Proposal, steps run)."""
     log = log or (lambda msg: None)
     nw, ndim = state.shape
-    proposal, prev, steps, n = None, -np.inf, 0, cfg.burn_steps
+    proposal, prev, steps = None, -np.inf, 0
     for rnd in range(max(cfg.burn_rounds, cfg.burn_max_rounds)):
         bs = emcee.EnsembleSampler(nw, ndim, target, vectorize=True, moves=_moves(cfg, proposal))
         bs.random_state = np.random.RandomState([seed % (2**32), rnd]).get_state()
-        bs.run_mcmc(state, n, progress=_progress(cfg), skip_initial_state_check=True)
-        chain, lpc = bs.get_chain(), bs.get_log_prob()
-        new = fit_proposal(chain, lpc)
+        bs.run_mcmc(state, cfg.burn_steps, progress=_progress(cfg), skip_initial_state_check=True)
+        lpc = bs.get_log_prob()
+        new = fit_proposal(bs.get_chain(), lpc)
         ratio, shift = proposal_change(proposal.spread if proposal else None, new.spread)
         proposal = new
-        state, stuck = reinitialise(chain, lpc, nw, rng)
-        steps += n
-        level = float(np.median(lpc[n // 2:]))
-        ess = (n - n // 2) * nw / float(np.max(_tau(chain[n // 2:])))
-        log(f"burn-in round {rnd + 1} ({n} steps): acceptance {np.mean(bs.acceptance_fraction):.2f}, "
+        state, stuck = reinitialise(bs.get_chain(), lpc, nw, rng)
+        steps += cfg.burn_steps
+        level = float(np.median(lpc[cfg.burn_steps // 2:]))
+        log(f"burn-in round {rnd + 1}: acceptance {np.mean(bs.acceptance_fraction):.2f}, "
             f"median log-posterior (u) {level:.6g} (best {np.max(lpc):.6g}), "
-            f"{stuck} stuck walkers dropped, proposal width ratio {ratio:.2f}, centre shift "
-            f"{shift:.2f} widths, {ess:.0f} effective draws")
+            f"{stuck} stuck walkers dropped, proposal sd ratio {ratio:.2f}, mean shift "
+            f"{shift:.2f} sd")
         # still climbing (the median walker gained more than the posterior's own spread of the
-        # log density, sqrt(D/2)), walkers stuck, the ensemble still spreading, or too few
-        # effective draws to tell: another round
+        # log density, sqrt(D/2)), walkers stuck, or the ensemble still spreading: another round
         settled = stuck == 0 and level - prev < np.sqrt(ndim / 2.0) and \
-            ratio <= cfg.burn_stable and shift <= cfg.burn_shift and ess >= cfg.burn_min_ess
+            ratio <= cfg.burn_stable and shift <= cfg.burn_shift
         prev = level
-        if rnd + 1 >= cfg.burn_rounds and (settled or steps >= cfg.burn_max_total):
+        if rnd + 1 >= cfg.burn_rounds and settled:
             break
-        if ess < cfg.burn_min_ess:      # twice as long, within what is left of the budget
-            n = min(2 * n, max(cfg.burn_steps, cfg.burn_max_total - steps))
     return state, proposal, steps
 
 
