@@ -105,3 +105,26 @@ def test_hidden_campaign_keeps_its_answer_out(tmp_path):
         (tmp_path / "d" / "tests" / "h-0.2Hz.csv").read_bytes()
     mfd = hidden_campaign(tmp_path / "m", "mfd", None, seed=1, short=True)
     assert mfd["effect"] == "none" and load_campaign(tmp_path / "m").applied_si_unit == "Pa"
+
+
+def test_short_campaigns_replay_the_strong_motion(tmp_path):
+    """The short campaigns' Kobe replay is SHORT_EQ_SECONDS from 1 s before the displacement first
+    exceeds 1 % of its peak (the record's 10-40 s), time restarted at 0; the window holds the
+    record's peak; eq_from="start" gives the first eq_seconds instead; anything else is refused."""
+    import numpy as np
+    import pytest
+    from frictionuq.discrepancy.hidden import SHORT_EQ_SECONDS, strong_motion
+    from frictionuq.twins import earthquake_drive
+    t, x = earthquake_drive("kobe", 0.0127)
+    ts, xs = strong_motion(t, x, SHORT_EQ_SECONDS)
+    start = int(np.flatnonzero(x == xs[0])[0])
+    assert np.array_equal(x[start:start + xs.size], xs) and 9.0 < t[start] < 11.0 and ts[0] == 0.0
+    assert SHORT_EQ_SECONDS - 0.02 < ts[-1] < SHORT_EQ_SECONDS
+    assert np.max(np.abs(xs)) == np.max(np.abs(x))
+    assert np.all(np.abs(x[:start]) <= 0.01 * np.max(np.abs(x)))
+    hidden_campaign(tmp_path / "s", "mfd", None, seed=1, short=True)
+    hidden_campaign(tmp_path / "f", "mfd", None, seed=1, short=True, eq_seconds=20.0, eq_from="start")
+    n = {k: len((tmp_path / k / "tests" / "eq-kobe.csv").read_text().splitlines()) - 1 for k in "sf"}
+    assert n == {"s": 3000, "f": 2000}, n
+    with pytest.raises(ValueError, match="eq_from"):
+        hidden_campaign(tmp_path / "x", "mfd", None, seed=1, short=True, eq_from="end")
