@@ -76,6 +76,8 @@ def hidden_campaign(out_dir, device: str, effect: str | None, seed: int,
     short: 4 cycles per harmonic and `eq_seconds` of the ground motion, from its strong motion
     (eq_from="strong", strong_motion) or from its start ("start": the CI campaigns before
     2026-11-25, night, whose Kobe replay was the first 20 s)."""
+    if eq_from not in ("strong", "start"):
+        raise ValueError(f"hidden_campaign: eq_from must be 'strong' or 'start', got {eq_from!r}")
     out = Path(out_dir)
     rng = np.random.default_rng([seed, 4242])
     level = LEVEL[device]
@@ -93,8 +95,6 @@ def hidden_campaign(out_dir, device: str, effect: str | None, seed: int,
         drives.append((f"h-{f:g}Hz", "harmonic", f, t, x))
     t, x = earthquake_drive("kobe", 0.5 * amp)
     if short:
-        if eq_from not in ("strong", "start"):
-            raise ValueError(f"hidden_campaign: eq_from must be 'strong' or 'start', got {eq_from!r}")
         t, x = strong_motion(t, x, eq_seconds) if eq_from == "strong" else \
             (t[t < eq_seconds], x[t < eq_seconds])
     drives.append(("eq-kobe", "earthquake", None, t, x))
