@@ -35,7 +35,8 @@ def _cmd_fit(a):
     samp = SamplerConfig(**({"max_steps": a.max_steps} if a.max_steps else {}))
     cfg = FitConfig(model=a.model, effects=tuple(a.effect or ()), likelihood=a.likelihood,
                     seed=a.seed, sampler=samp, tests=tuple(a.test) if a.test else None,
-                    kinds=tuple(a.kind) if a.kind else None, simulate_at=a.simulate_at)
+                    kinds=tuple(a.kind) if a.kind else None, simulate_at=a.simulate_at,
+                    drive_lowpass=a.drive_lowpass)
     s = fit_campaign(a.campaign, a.out, by=a.by, config=cfg, log=lambda m: print(m, file=sys.stderr))
     bad = [f["id"] for f in s["fits"] if not f["converged"]]
     print(f"wrote {len(s['fits'])} fit(s) of campaign {s['campaign']!r} to {a.out} (summary.json, "
@@ -244,6 +245,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--simulate-at", choices=["raw", "kept"], default="raw",
                    help="decimated records: simulate at the raw rate and filter the model force like "
                         "the data (default), or simulate on the decimated displacement (faster)")
+    s.add_argument("--drive-lowpass", type=float, default=None, metavar="MULT",
+                   help="low-pass each measured displacement (zero phase) at MULT x its 99 %% "
+                        "velocity-power frequency before the model runs on it (e.g. 20; default: "
+                        "off); predict and validate then filter their measured inputs alike")
     _add_selection(s, "cap on stored sampler steps")
     s.set_defaults(func=_cmd_fit)
 

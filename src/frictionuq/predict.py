@@ -279,9 +279,11 @@ class Prediction:
 
 def predict(fit_dir, applied_si: float, t, x, *, eps: float = 0.0, n_draws: int = 400, seed: int = 1,
             include_offset: bool = False, applied_signal=None, samples_per_cycle: int | None = None,
-            summary: dict | None = None) -> Prediction:
+            summary: dict | None = None, drive_lowpass: float | None = None) -> Prediction:
     """Posterior predictive bands and per-cycle figures of the force for drive (t, x) (SI) at
-    applied force `applied_si` (SI). samples_per_cycle: set for a generated harmonic."""
+    applied force `applied_si` (SI). samples_per_cycle: set for a generated harmonic.
+    drive_lowpass: the model runs on x low-passed like the fit's records (infer.drivefilter;
+    `fit_drive_lowpass(summary)` for a measured input); the bands keep the given x."""
     if isinstance(n_draws, bool) or not isinstance(n_draws, (int, np.integer)) or n_draws < 2:
         raise InputError(f"number of draws must be an integer >= 2, got {n_draws!r}")
     if not (math.isfinite(applied_si) and applied_si >= 0):
@@ -295,10 +297,25 @@ def predict(fit_dir, applied_si: float, t, x, *, eps: float = 0.0, n_draws: int 
         applied_signal = np.full(t.size, float(applied_si))    # applied_tracking: neutral
     rng = np.random.default_rng(seed)
     draws = choose_draws(fit_dir, applied_si, int(n_draws), rng, summary)
-    Fm = simulate_draws(t, x, draws, eps, applied_signal)
+    Fm = simulate_draws(t, model_drive(t, x, drive_lowpass), draws, eps, applied_signal)
     Fn = add_noise(Fm, draws, float(np.median(np.diff(t))), rng, include_offset)
     bounds = cycle_bounds(x, eps, samples_per_cycle)
     return Prediction(band_table(t, x, Fn, Fm), cycle_table(t, x, Fm, bounds), draws, eps, Fm)
+
+
+def fit_drive_lowpass(summary: dict) -> float | None:
+    """The fit's drive low-pass multiple (FitConfig.drive_lowpass), None when off."""
+    return (summary.get("config") or {}).get("drive_lowpass")
+
+
+def model_drive(t, x, drive_lowpass: float | None) -> np.ndarray:
+    """x as the model sees it: low-passed at drive_lowpass x its 99 % velocity-power frequency
+    (infer.drivefilter), or x itself when None."""
+    if drive_lowpass is None:
+        return x
+    from .infer.drivefilter import lowpass
+    from .infer.likelihood import drive_cutoff
+    return lowpass(x, 1.0 / float(np.median(np.diff(t))), drive_cutoff(t, x, drive_lowpass))
 
 
 # ---------------------------------------------------------------- files
@@ -330,8 +347,10 @@ def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied
     if not (math.isfinite(value) and value >= 0):
         raise InputError(f"applied force: must be a finite number >= 0 {unit}, got {applied!r}")
     a_si = float(U.to_si(value, "applied", unit))
+    lowpass_mult = None
     if input_csv is not None:
         t, x, sig = read_input(input_csv)
+        lowpass_mult = fit_drive_lowpass(summary)      # a measured record: filtered like the fit's
         try:
             eps = default_eps(x)
         except ValueError as e:
@@ -340,6 +359,7 @@ def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied
         inp = {"kind": "record", "file": str(input_csv), "sha256": sha256_file(input_csv),
                "samples": int(t.size), "duration_s": float(t[-1] - t[0]),
                "eps_m": eps, "eps_rule": "noise.default_eps (8 x the displacement-noise sd)",
+               "drive_lowpass": lowpass_mult,
                "applied_signal": "from the file's `applied` column" if sig is not None else
                "constant at the applied force"}
     else:
@@ -351,10 +371,10 @@ def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied
         sig, eps, spc = None, 0.0, HARMONIC_SAMPLES_PER_CYCLE
         inp = {"kind": "harmonic", "amplitude_m": float(amp), "frequency_hz": float(freq),
                "cycles": HARMONIC_CYCLES, "samples_per_cycle": HARMONIC_SAMPLES_PER_CYCLE,
-               "start": "x = 0 moving up (clean sine)", "eps_m": 0.0}
+               "start": "x = 0 moving up (clean sine)", "eps_m": 0.0, "drive_lowpass": None}
     pred = predict(fit_dir, a_si, t, x, eps=eps, n_draws=n_draws, seed=seed,
                    include_offset=include_offset, applied_signal=sig, samples_per_cycle=spc,
-                   summary=summary)
+                   summary=summary, drive_lowpass=lowpass_mult)
     meta = {"package_version": __version__, "fit_dir": str(fit_dir), "campaign": summary.get("campaign"),
             "applied": {"si": a_si, "si_unit": U.si_unit_of_applied(unit), "value": value,
                         "unit": unit, "unit_source": unit_src},

@@ -65,7 +65,7 @@ def validate(fit_dir, campaign_path, test_ids, out_dir, *, n_draws: int = 400, s
     from .campaign import load_campaign
     from .fitdir import load_summary
     from .noise import default_eps
-    from .predict import predict
+    from .predict import fit_drive_lowpass, predict
     log = log or (lambda m: None)
     camp = load_campaign(campaign_path)
     summary = load_summary(fit_dir)
@@ -82,9 +82,10 @@ def validate(fit_dir, campaign_path, test_ids, out_dir, *, n_draws: int = 400, s
         r = te.record
         eps = default_eps(r.x)
         p = predict(fit_dir, te.applied, r.t, r.x, eps=eps, n_draws=n_draws, seed=seed,
-                    include_offset=True, summary=summary)
+                    include_offset=True, summary=summary, drive_lowpass=fit_drive_lowpass(summary))
         s = score(r.force, p.bands)
         s.update(test=tid, applied_si=te.applied, kind=te.kind, eps_m=eps,
+                 drive_lowpass=fit_drive_lowpass(summary),
                  held_out=tid not in fitted_tests, draws_source=p.draws.source)
         results.append(s)
         atomic.write_text(out / f"{tid}.bands.csv", p.bands.to_csv(index=False))

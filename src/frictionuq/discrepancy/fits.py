@@ -83,8 +83,7 @@ def unit_records(lp_all, folds, cfg: FitConfig) -> dict:
     have = {r.id: r for r in lp_all.records}
     if all(u.id in have for u in units):
         return {u.id: have[u.id] for u in units}
-    recs = records_from_tests(units, samples_per_cycle=cfg.samples_per_cycle, eps=cfg.eps,
-                              simulate_at=cfg.simulate_at)
+    recs = records_from_tests(units, **cfg.record_options())
     return {u.id: r for u, r in zip(units, recs)}
 
 

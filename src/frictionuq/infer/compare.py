@@ -244,8 +244,7 @@ def compare_level(tests, configs: dict[str, FitConfig], seed: int, log=None, *,
                 train = tests[:k] + tests[k + 1:]
                 _, space, _, res_k = _fit(train, cfg, seed + 1 + k, f"{name}/without-{held.id}",
                                           work_dir, log)
-                rec = records_from_tests([held], samples_per_cycle=cfg.samples_per_cycle,
-                                         eps=cfg.eps, simulate_at=cfg.simulate_at)
+                rec = records_from_tests([held], **cfg.record_options())
                 lp_held = LogPosterior(space, rec)
                 ll, ch = heldout_loglik(lp_held, _draws(res_k), offset)
                 elpd_k[held.id] = log_mean_exp(ll[:, 0])

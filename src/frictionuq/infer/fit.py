@@ -21,6 +21,7 @@ import numpy as np
 from .. import atomic, params as P
 from ..errors import InputError
 from ..units import from_si
+from . import drivefilter
 from .likelihood import SIMULATE_AT, LogPosterior, records_from_tests
 from .priors import apply_overrides, default_priors, record_scales
 from .sampler import SamplerConfig, sample
@@ -38,6 +39,7 @@ class FitConfig:
     samples_per_cycle: float = 400.0
     simulate_at: str = "raw"                       # "raw" or "kept" (infer.likelihood)
     eps: float | str = "auto"
+    drive_lowpass: float | None = None             # infer.drivefilter; None: the raw displacement
     kinds: tuple[str, ...] | None = None           # only tests of these kinds
     tests: tuple[str, ...] | None = None           # only these test ids
     sampler: SamplerConfig = field(default_factory=SamplerConfig)
@@ -48,6 +50,11 @@ class FitConfig:
         d = asdict(self)
         d["sampler"] = self.sampler.to_json()
         return d
+
+    def record_options(self) -> dict:
+        """How each test's record is prepared (likelihood.records_from_tests keywords)."""
+        return {"samples_per_cycle": self.samples_per_cycle, "eps": self.eps,
+                "simulate_at": self.simulate_at, "drive_lowpass": self.drive_lowpass}
 
 
 @dataclass
@@ -86,6 +93,10 @@ def plan(campaign, by: str = "applied", config: FitConfig | None = None) -> list
     config = config or FitConfig()
     try:    # unknown effects, or effects the model cannot carry: refused before any work
         P.check_effects({e: {} for e in config.effects}, config.model)
+    except ValueError as e:
+        raise InputError(f"fit: {e}") from None
+    try:
+        drivefilter.check_multiple(config.drive_lowpass)
     except ValueError as e:
         raise InputError(f"fit: {e}") from None
     tests = [t for t in campaign.tests
@@ -145,8 +156,7 @@ def prepare(spec: FitSpec):
                                  f"tests {missing} do not carry (campaign column `applied`)")
     if c.simulate_at not in SIMULATE_AT:
         raise InputError(f"fit: simulate_at must be one of {', '.join(SIMULATE_AT)}, got {c.simulate_at!r}")
-    records = records_from_tests(spec.tests, samples_per_cycle=c.samples_per_cycle, eps=c.eps,
-                                 simulate_at=c.simulate_at)
+    records = records_from_tests(spec.tests, **c.record_options())
     scales = record_scales([t.record for t in spec.tests])
     space = build_space(spec, scales)
     return records, scales, space, LogPosterior(space, records)
@@ -196,7 +206,7 @@ def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True
               "records": [{"id": r.id, "decimation": r.q, "samples": r.n, "eps_m": r.eps,
                            "rate_hz": r.fs_raw / r.q, "noise_theta": r.noise_theta,
                            "simulated_at_hz": r.fs_raw if r.sim_drive is not None or r.q == 1
-                           else r.fs_raw / r.q}
+                           else r.fs_raw / r.q, "drive_cutoff_hz": r.drive_cutoff_hz}
                           for r in records],
               "sampler": {"steps": res.n_steps, "burn": res.burn, "thin": res.thin,
                           "burn_in_phase_steps": res.burn_in_steps,

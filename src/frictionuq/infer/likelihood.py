@@ -33,7 +33,7 @@ import numpy as np
 
 from .. import model as M
 from ..noise import default_eps
-from . import noisemodel
+from . import drivefilter, noisemodel
 from .decimate import decimate, decimator
 from .space import Space
 
@@ -57,6 +57,7 @@ class FitRecord:
     noise_theta: float = 0.0     # MA coefficient of `arma` noise (noisemodel), set at the MAP
     sim_drive: M.Drive | None = None   # raw-rate drive when the model is simulated at the raw rate
     stride: int = 1              # compare every stride-th kept sample only (coarsened copies)
+    drive_cutoff_hz: float | None = None   # displacement low-passed here first (drivefilter)
 
     @property
     def n(self) -> int:
@@ -104,12 +105,14 @@ N_STATS = len(noisemodel.STATS)      # sufficient statistics of a record's resid
 
 def prepare_record(test_id, t, x, force, applied=None, *, q: int | str = "auto", eps="auto",
                    samples_per_cycle: float = 128, frequency_hz=None, applied_level=float("nan"),
-                   kind="other", simulate_at: str = "raw") -> FitRecord:
+                   kind="other", simulate_at: str = "raw", drive_lowpass=None) -> FitRecord:
     """Decimate one record (SI arrays) and prepare it for the likelihood. simulate_at: "raw"
     (the model runs on the raw-rate record and its force is decimated like the data's) or
-    "kept" (the model runs on the decimated displacement)."""
+    "kept" (the model runs on the decimated displacement). drive_lowpass: None, or low-pass the
+    displacement first at this multiple of its 99 % velocity-power frequency (drivefilter)."""
     if simulate_at not in SIMULATE_AT:
         raise ValueError(f"simulate_at must be one of {SIMULATE_AT}, got {simulate_at!r}")
+    mult = drivefilter.check_multiple(drive_lowpass)
     t = np.asarray(t, float)
     x = np.asarray(x, float)
     force = np.asarray(force, float)
@@ -117,6 +120,8 @@ def prepare_record(test_id, t, x, force, applied=None, *, q: int | str = "auto",
     if q == "auto":
         q = decimation_factor(t, x, samples_per_cycle, frequency_hz)
     q = int(q)
+    cut = drive_cutoff(t, x, mult)
+    x = drivefilter.lowpass(x, 1.0 / float(np.median(np.diff(t))), cut)
     td = t[::q]
     xd = decimate(x, q)[: td.size]
     yd = decimate(force, q)[: td.size]
@@ -125,7 +130,18 @@ def prepare_record(test_id, t, x, force, applied=None, *, q: int | str = "auto",
     drive = M.prepare(td, xd, ad)
     sim_drive = M.prepare(t, x, applied) if q > 1 and simulate_at == "raw" else None
     return FitRecord(str(test_id), td, xd, yd, ad, drive, e, q, 1.0 / float(np.median(np.diff(t))),
-                     float(applied_level), kind, frequency_hz, sim_drive=sim_drive)
+                     float(applied_level), kind, frequency_hz, sim_drive=sim_drive,
+                     drive_cutoff_hz=cut)
+
+
+def drive_cutoff(t, x, multiple: float | None) -> float | None:
+    """The drive low-pass cutoff (Hz) of a record for `drive_lowpass` = multiple (drivefilter),
+    None when off or when it would be close to Nyquist."""
+    if multiple is None:
+        return None
+    t = np.asarray(t, float)
+    return drivefilter.cutoff_hz(1.0 / float(np.median(np.diff(t))),
+                                 dominant_frequency(t, np.asarray(x, float))[1], multiple)
 
 
 def records_from_tests(tests, **kw) -> list[FitRecord]:

@@ -1,0 +1,66 @@
+"""Optional low-pass of a measured displacement before the model runs on it (`drive_lowpass`).
+
+Why: the kernel takes the sample velocity v[k] from central differences of the displacement, so
+the displacement sensor's noise reaches the model amplified (sd ~ 0.7 sd_x / dt) and enters it
+nonlinearly: through the Stribeck curve g(v) and through the backlash force d*Fb/sigma0 that
+sets the bristle state until the hand-over at s = d2 + d3 + 5 w. Sliding relaxes z only over
+g/sigma0 of travel (several mm on the BRFD), so z keeps the noise of the last sample before the
+hand-over, and which sample that is depends on d2, d3 and w: the log-posterior is then rough
+along those parameters (on the real arts-d1 20 lb level, second differences of up to 2.8 nats
+along d3, against 0.1-0.2 along the friction forces; README, "What the real arts-d1
+posteriors look like").
+
+What: a zero-phase Butterworth low-pass (order 4, run forward and backward) at `multiple` x the
+frequency below which 99 % of the record's velocity power lies (likelihood.dominant_frequency,
+the same figure the decimation rule uses), after removing the line through the end points (as
+decimate does), with an odd extension six cutoff periods long at each end so that the edges
+carry no transient. The measured force and
+the reversal dead band eps (estimated on the raw displacement) are unchanged. Off by default:
+the spec's model runs on the recorded samples.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.signal import butter, sosfiltfilt
+
+ORDER = 4
+#: the highest cutoff worth filtering at, as a fraction of the Nyquist frequency
+MAX_FRACTION = 0.9
+#: edge padding, in periods of the cutoff frequency
+PAD_PERIODS = 6.0
+
+
+def check_multiple(value, where: str = "drive_lowpass") -> float | None:
+    """None (off) or a finite multiple > 0; anything else raises ValueError naming `where`."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) or not (
+            math.isfinite(value) and value > 0):
+        raise ValueError(f"{where} must be a finite number > 0 (a multiple of the record's 99 % "
+                         f"velocity-power frequency) or None for off, got {value!r}")
+    return float(value)
+
+
+def cutoff_hz(fs_hz: float, f99_hz: float, multiple: float | None) -> float | None:
+    """The cutoff (Hz) for a record sampled at fs_hz, or None when there is nothing to filter
+    (off, or the cutoff at or above MAX_FRACTION of Nyquist)."""
+    if multiple is None:
+        return None
+    c = float(multiple) * float(f99_hz)
+    return c if 0.0 < c < MAX_FRACTION * 0.5 * fs_hz else None
+
+
+def lowpass(x, fs_hz: float, cutoff: float | None) -> np.ndarray:
+    """x low-passed at `cutoff` Hz (zero phase), or a copy of x when cutoff is None."""
+    x = np.asarray(x, float)
+    if cutoff is None or x.size < 3 * (2 * ORDER + 1):
+        return x.copy()
+    ramp = np.linspace(0.0, 1.0, x.size)
+    trend = x[0] + (x[-1] - x[0]) * ramp
+    sos = butter(ORDER, cutoff, fs=fs_hz, output="sos")
+    # odd extension over PAD_PERIODS periods of the cutoff: scipy's default (15 samples) is far
+    # shorter than the filter's memory and leaves edge transients of mm on a 0.5 Hz, 25 mm sine
+    pad = min(x.size - 1, int(math.ceil(PAD_PERIODS * fs_hz / cutoff)))
+    return sosfiltfilt(sos, x - trend, padtype="odd", padlen=pad) + trend
