@@ -86,6 +86,8 @@ def test_bad_fit_section_values(tmp_path):
     base = BASE.replace('tests = ["sine-2Hz-36lb-0.5in"]', "")
     for fit, where in [("model = 'coulomb'", "[fit].model"), ("likelihood = 'ar2'", "[fit].likelihood"),
                        ("simulate_at = 'fine'", "[fit].simulate_at"),
+                       ("drive_lowpass = 0", "[fit].drive_lowpass"),
+                       ("drive_lowpass = 'on'", "[fit].drive_lowpass"),
                        ("effects = ['wobble']", "[fit].effects"), ("eps = -1.0", "[fit].eps"),
                        ("kinds = ['sine']", "[fit].kinds"), ("bogus = 1", "fit.bogus")]:
         p = _write(tmp_path, "", base.replace("[fit]", "[fit]\n" + fit))
@@ -139,6 +141,10 @@ def test_arma_likelihood_accepted_but_not_with_heldout_stages(tmp_path):
     assert wf.fit_config().simulate_at == "raw"            # the default
     kept = load_workflow(_write(tmp_path, "", base.replace("[fit]", "[fit]\nsimulate_at = 'kept'")))
     assert kept.fit_config().simulate_at == "kept"
+    assert wf.fit_config().drive_lowpass is None           # off unless asked
+    lp = load_workflow(_write(tmp_path, "", base.replace("[fit]", "[fit]\ndrive_lowpass = 20")))
+    assert lp.fit_config().drive_lowpass == 20
+    assert lp.fit_config().record_options()["drive_lowpass"] == 20
     for sec in ("compare", "discrepancy"):
         p = _write(tmp_path, f"\n[{sec}]\nenabled = true\n", base)
         with pytest.raises(InputError) as e:
