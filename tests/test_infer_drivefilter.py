@@ -137,8 +137,8 @@ def test_plan_and_cli_refuse_a_bad_multiple(fit_dir, tmp_path, capsys):
     with pytest.raises(InputError, match="drive_lowpass must be a finite number > 0"):
         plan(load_campaign(root / "camp"), config=FitConfig(drive_lowpass=0.0))
     out = tmp_path / "never"
-    for bad in ("-3", "nan"):
-        code = main(["fit", str(root / "camp"), "--out", str(out), "--drive-lowpass", bad])
+    for cmd, bad in (("fit", "-3"), ("fit", "nan"), ("discover", "0")):
+        code = main([cmd, str(root / "camp"), "--out", str(out), "--drive-lowpass", bad])
         err = capsys.readouterr().err
         assert code == 2, err
         assert err.count("\n") == 1 and "drive_lowpass" in err, err

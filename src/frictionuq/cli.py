@@ -126,7 +126,7 @@ def _cmd_discover(a):
     from .infer.sampler import SamplerConfig
     samp = SamplerConfig(**({"max_steps": a.max_steps} if a.max_steps else {}))
     cfg = FitConfig(likelihood=a.likelihood, sampler=samp, tests=tuple(a.test) if a.test else None,
-                    kinds=tuple(a.kind) if a.kind else None)
+                    kinds=tuple(a.kind) if a.kind else None, drive_lowpass=a.drive_lowpass)
     d = discover(a.campaign, a.out, cfg, seed=a.seed, refit=not a.no_refit,
                  extra_effects=tuple(a.extra_effect or ()),
                  log=lambda m: print(m, file=sys.stderr))
@@ -207,6 +207,13 @@ def _add_selection(s, max_steps_help: str) -> None:
     s.add_argument("--max-steps", type=int, default=None, help=max_steps_help)
 
 
+def _add_drive_lowpass(s) -> None:
+    s.add_argument("--drive-lowpass", type=float, default=None, metavar="MULT",
+                   help="low-pass each measured displacement (zero phase) at MULT x its 99 %% "
+                        "velocity-power frequency before the model runs on it (e.g. 20; default: "
+                        "off); predict and validate then filter their measured inputs alike")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
     p = argparse.ArgumentParser(prog="frictionuq", description=__doc__.splitlines()[0])
@@ -245,10 +252,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--simulate-at", choices=["raw", "kept"], default="raw",
                    help="decimated records: simulate at the raw rate and filter the model force like "
                         "the data (default), or simulate on the decimated displacement (faster)")
-    s.add_argument("--drive-lowpass", type=float, default=None, metavar="MULT",
-                   help="low-pass each measured displacement (zero phase) at MULT x its 99 %% "
-                        "velocity-power frequency before the model runs on it (e.g. 20; default: "
-                        "off); predict and validate then filter their measured inputs alike")
+    _add_drive_lowpass(s)
     _add_selection(s, "cap on stored sampler steps")
     s.set_defaults(func=_cmd_fit)
 
@@ -311,6 +315,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True, help="output folder: discrepancy.json, report.html, figures, refit/")
     s.add_argument("--likelihood", choices=["iid", "ar1"], default="ar1")
     s.add_argument("--no-refit", action="store_true", help="screen and name only (no MCMC refit)")
+    _add_drive_lowpass(s)
     s.add_argument("--extra-effect", action="append", metavar="EFFECT",
                    help="also screen this effect beyond the spec's library (takeup_overshoot)")
     _add_selection(s, "cap on stored sampler steps of the refit")
