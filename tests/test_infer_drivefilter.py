@@ -9,11 +9,12 @@ import pytest
 
 from frictionuq.infer import drivefilter
 from frictionuq.infer.fit import FitConfig, fit_campaign, plan
-from frictionuq.infer.likelihood import default_eps, dominant_frequency, drive_cutoff, prepare_record
+from frictionuq.infer.likelihood import (default_eps, dominant_frequency, drive_cutoff, lowpass_drive,
+                                         prepare_record)
 from frictionuq.infer.sampler import SamplerConfig
 from frictionuq.campaign import load_campaign
 from frictionuq.model import simulate
-from frictionuq.predict import model_drive, write_prediction
+from frictionuq.predict import write_prediction
 
 FS = 1024.0
 AMP = 0.0254
@@ -124,7 +125,7 @@ def test_fit_records_the_setting_and_predict_filters_a_measured_input_alike(fit_
     # the bands keep the given displacement; the model ran on the filtered one
     b = pd.read_csv(root / "p" / "bands.csv")
     np.testing.assert_allclose(b["displacement"], x, rtol=1e-8, atol=1e-12)   # %.9g in the CSV
-    xm = model_drive(t, pd.read_csv(X)["displacement"].to_numpy(), 20.0)
+    xm = lowpass_drive(t, pd.read_csv(X)["displacement"].to_numpy(), 20.0)[0]
     assert np.std(xm - x) > 0.5e-6                  # it did filter (the noise sd is 3e-6)
     h = write_prediction(fit, root / "h", harmonic=(AMP, 0.5), applied=1000, n_draws=20)
     assert h["input"]["drive_lowpass"] is None        # a generated sine is clean

@@ -297,7 +297,8 @@ def predict(fit_dir, applied_si: float, t, x, *, eps: float = 0.0, n_draws: int 
         applied_signal = np.full(t.size, float(applied_si))    # applied_tracking: neutral
     rng = np.random.default_rng(seed)
     draws = choose_draws(fit_dir, applied_si, int(n_draws), rng, summary)
-    Fm = simulate_draws(t, model_drive(t, x, drive_lowpass), draws, eps, applied_signal)
+    from .infer.likelihood import lowpass_drive
+    Fm = simulate_draws(t, lowpass_drive(t, x, drive_lowpass)[0], draws, eps, applied_signal)
     Fn = add_noise(Fm, draws, float(np.median(np.diff(t))), rng, include_offset)
     bounds = cycle_bounds(x, eps, samples_per_cycle)
     return Prediction(band_table(t, x, Fn, Fm), cycle_table(t, x, Fm, bounds), draws, eps, Fm)
@@ -306,16 +307,6 @@ def predict(fit_dir, applied_si: float, t, x, *, eps: float = 0.0, n_draws: int 
 def fit_drive_lowpass(summary: dict) -> float | None:
     """The fit's drive low-pass multiple (FitConfig.drive_lowpass), None when off."""
     return (summary.get("config") or {}).get("drive_lowpass")
-
-
-def model_drive(t, x, drive_lowpass: float | None) -> np.ndarray:
-    """x as the model sees it: low-passed at drive_lowpass x its 99 % velocity-power frequency
-    (infer.drivefilter), or x itself when None."""
-    if drive_lowpass is None:
-        return x
-    from .infer.drivefilter import lowpass
-    from .infer.likelihood import drive_cutoff
-    return lowpass(x, 1.0 / float(np.median(np.diff(t))), drive_cutoff(t, x, drive_lowpass))
 
 
 # ---------------------------------------------------------------- files

@@ -77,15 +77,16 @@ def validate(fit_dir, campaign_path, test_ids, out_dir, *, n_draws: int = 400, s
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     results = []
+    lowpass_mult = fit_drive_lowpass(summary)    # measured records: filtered like the fit's
     for tid in test_ids:
         te = by_id[tid]
         r = te.record
         eps = default_eps(r.x)
         p = predict(fit_dir, te.applied, r.t, r.x, eps=eps, n_draws=n_draws, seed=seed,
-                    include_offset=True, summary=summary, drive_lowpass=fit_drive_lowpass(summary))
+                    include_offset=True, summary=summary, drive_lowpass=lowpass_mult)
         s = score(r.force, p.bands)
         s.update(test=tid, applied_si=te.applied, kind=te.kind, eps_m=eps,
-                 drive_lowpass=fit_drive_lowpass(summary),
+                 drive_lowpass=lowpass_mult,
                  held_out=tid not in fitted_tests, draws_source=p.draws.source)
         results.append(s)
         atomic.write_text(out / f"{tid}.bands.csv", p.bands.to_csv(index=False))

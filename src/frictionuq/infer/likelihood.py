@@ -120,8 +120,7 @@ def prepare_record(test_id, t, x, force, applied=None, *, q: int | str = "auto",
     if q == "auto":
         q = decimation_factor(t, x, samples_per_cycle, frequency_hz)
     q = int(q)
-    cut = drive_cutoff(t, x, mult)
-    x = drivefilter.lowpass(x, 1.0 / float(np.median(np.diff(t))), cut)
+    x, cut = lowpass_drive(t, x, mult)
     td = t[::q]
     xd = decimate(x, q)[: td.size]
     yd = decimate(force, q)[: td.size]
@@ -132,6 +131,15 @@ def prepare_record(test_id, t, x, force, applied=None, *, q: int | str = "auto",
     return FitRecord(str(test_id), td, xd, yd, ad, drive, e, q, 1.0 / float(np.median(np.diff(t))),
                      float(applied_level), kind, frequency_hz, sim_drive=sim_drive,
                      drive_cutoff_hz=cut)
+
+
+def lowpass_drive(t, x, multiple: float | None) -> tuple[np.ndarray, float | None]:
+    """(x as the model sees it, the cutoff in Hz or None): x low-passed at `multiple` x its 99 %
+    velocity-power frequency (drivefilter), or x itself when off."""
+    cut = drive_cutoff(t, x, multiple)
+    if cut is None:
+        return x, None
+    return drivefilter.lowpass(x, 1.0 / float(np.median(np.diff(t))), cut), cut
 
 
 def drive_cutoff(t, x, multiple: float | None) -> float | None:
