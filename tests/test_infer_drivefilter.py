@@ -129,6 +129,9 @@ def test_fit_records_the_setting_and_predict_filters_a_measured_input_alike(fit_
     assert np.std(xm - x) > 0.5e-6                  # it did filter (the noise sd is 3e-6)
     h = write_prediction(fit, root / "h", harmonic=(AMP, 0.5), applied=1000, n_draws=20)
     assert h["input"]["drive_lowpass"] is None        # a generated sine is clean
+    from frictionuq.validate import validate
+    v = validate(fit, root / "camp", ["h1"], root / "v", n_draws=20, figures=False)
+    assert v["tests"][0]["drive_lowpass"] == 20.0     # the measured test is filtered like the fit's
 
 
 def test_plan_and_cli_refuse_a_bad_multiple(fit_dir, tmp_path, capsys):
