@@ -15,7 +15,8 @@ wall time) and whether it met R-hat <= 1.01 and ESS >= 400 for every parameter.
 data (the default configuration), on the decimated displacement (cheaper, biased:
 infer.likelihood), or both side by side with their time ratio.
 Targets: under 2 minutes for the twin force level, under 10 minutes for all of brfd-arts-d1, on
-the 2-core machine. Run it on a quiet machine; the figures are in the README.
+the 2-core machine. Run it on a quiet machine; the figures are in the README
+(current) and docs/log-calibration.md (every run).
 """
 from __future__ import annotations
 

@@ -24,7 +24,7 @@ def test_evidence_ratio_matches_monte_carlo(tmp_path):
     # the CI campaign of before 2026-11-25 (night), whose Kobe replay is its first 20 s. On the
     # strong-motion window (hidden.strong_motion), split into 2, 3, 4, 5, 6 or 8 blocks, the two
     # agree within 1 nat on 14 of the 16 blocks where Monte Carlo's ESS is above 200, and differ
-    # by 1.4 and 1.9 nats on the other two (README, issue 5)
+    # by 1.4 and 1.9 nats on the other two (docs/log-discrepancy.md)
     ans = hidden_campaign(tmp_path / "c", "brfd", None, seed=3, short=True, eq_seconds=20.0,
                           eq_from="start")
     cfg = FitConfig(samples_per_cycle=100)

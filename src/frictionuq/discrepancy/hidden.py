@@ -44,7 +44,7 @@ def strong_motion(t, x, seconds: float) -> tuple[np.ndarray, np.ndarray]:
     (22 mm peak to peak), the moderate motion after it (12.7 mm) and small cycles inside the
     backlash (1.8 mm), whose varying amplitudes show the shape of the stage-2 line. Measured on
     the hidden stage2_nonlinear campaigns of seeds 11 and 12 (both devices): named 0 of 4 with
-    the first 20 s, 1 of 4 with 20 s from here, 2 of 4 with 30 s (README, issue 5)."""
+    the first 20 s, 1 of 4 with 20 s from here, 2 of 4 with 30 s (docs/log-discrepancy.md)."""
     t0 = t[int(np.argmax(np.abs(x) > 0.01 * np.max(np.abs(x))))] - 1.0
     keep = (t >= t0) & (t < t0 + seconds)
     return t[keep] - t[keep][0], x[keep]

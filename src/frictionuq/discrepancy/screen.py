@@ -64,7 +64,7 @@ Otherwise the answer is "none". Calibration on clean campaigns (benchmarks/bench
 --effects none, short records): with the plug-in score, screened on the kept samples, the best
 candidate's gains reached 67.7 nats on one held-out test but never two tests above 5 nats;
 screened at the raw rate, BRFD seed 5 was a false alarm (above). Figures with the evidence
-ratio: README, issue 5.
+ratio: README, issue 5, and docs/log-discrepancy.md.
 """
 from __future__ import annotations
 

@@ -7,8 +7,8 @@ sets the bristle state until the hand-over at s = d2 + d3 + 5 w. Sliding relaxes
 g/sigma0 of travel (several mm on the BRFD), so z keeps the noise of the last sample before the
 hand-over, and which sample that is depends on d2, d3 and w: the log-posterior is then rough
 along those parameters (on the real arts-d1 20 lb level, second differences of up to 2.8 nats
-along d3, against 0.1-0.2 along the friction forces; README, "What the real posteriors look
-like" and "Where the steps come from").
+along d3, against 0.1-0.2 along the friction forces; docs/log-calibration.md, "What the real
+posteriors look like" and "Where the steps come from").
 
 What: a zero-phase Butterworth low-pass (order 4, run forward and backward) at `multiple` x the
 frequency below which 99 % of the record's velocity power lies (likelihood.dominant_frequency,
@@ -18,8 +18,8 @@ carry no transient. The measured force and the reversal dead band eps (estimated
 displacement) are unchanged.
 
 Off by default: the spec's model runs on the recorded samples, and on the arts-d1 records (with
-multiple 20) the option fits every level better but mixes better at only two of six (README,
-"Drive low-pass").
+multiple 20) the option fits every level better but mixes better at only two of six
+(docs/log-calibration.md, "Drive low-pass").
 """
 from __future__ import annotations
 
