@@ -36,7 +36,7 @@ record (the MAP test below, strict xfail); this test's 66 N case is that record,
 chain covers all 14 true values (SEED 7). Before 2026-11-26 the 35 and 53 N sets were left out because the MAP search missed their
 mode (the chain settled 250 log-posterior units below the truth at 35 N); the search reaches it
 since the heuristic's variants and the differential-evolution starts.
-Deterministic (seeded); about 55 s on 2 cores (alone): marked slow."""
+Deterministic (seeded); about 60 s on 2 cores (63 s measured alone): marked slow."""
 from __future__ import annotations
 
 import warnings
