@@ -103,6 +103,7 @@ def oracle_simulate(t, x, params: dict, effects: dict | None = None, model: str 
     beta_app = E_["beta_app"]
     a_to = {1: E_["a_to_fwd"], -1: E_["a_to_bwd"]}
     l_to = E_["l_to"]
+    beta_sw, v_sw = E_["beta_sw"], E_["v_sw"]
     to_on = "takeup_overshoot" in on and model == "three_stage"
     if "applied_tracking" in on:
         if applied is None:
@@ -139,6 +140,8 @@ def oracle_simulate(t, x, params: dict, effects: dict | None = None, model: str 
             f *= 1.0 + beta_rate * math.log(1.0 + abs(vel) / v_ref)
         if "applied_tracking" in on:
             f *= max(0.0, 1.0 + beta_app * (a_sig[k] / a_med - 1.0))
+        if "speed_weakening" in on:
+            f *= 1.0 - beta_sw * (1.0 - math.exp(-abs(vel) / v_sw))
         return f
 
     def g_of(direction, vel, fac):

@@ -86,6 +86,9 @@ def test_candidates_are_the_spec_library_unless_asked(tmp_path):
     assert screen.candidates(tests) == ["stage2_nonlinear", "thermal_fade", "reversal_hump",
                                         "eccentricity", "rate_strengthening", "applied_tracking"]
     assert screen.candidates(tests, ("takeup_overshoot",))[-1] == "takeup_overshoot"
+    assert screen.candidates(tests, ("speed_weakening",))[-1] == "speed_weakening"
+    assert screen.candidates(tests, ("speed_weakening", "takeup_overshoot"))[-2:] == [
+        "takeup_overshoot", "speed_weakening"]
 
 
 def test_hidden_campaign_keeps_its_answer_out(tmp_path):

@@ -75,6 +75,8 @@ def draw_effect(rng, name, p):
     if name == "takeup_overshoot":
         return {"a_to_fwd": rng.uniform(-0.9, 2.0), "a_to_bwd": rng.uniform(-0.9, 2.0),
                 "l_to": loguniform(rng, 1e-4, 1e-2)}
+    if name == "speed_weakening":
+        return {"beta_sw": rng.uniform(0.02, 0.9), "v_sw": loguniform(rng, 1e-4, 1.0)}
     raise KeyError(name)
 
 

@@ -7,7 +7,7 @@ numba's on-disk cache keys on the file that holds a jitted function.
 Parameter vector layout (see params.VECTOR_NAMES):
     0 fc_fwd 1 fc_bwd 2 fs_fwd 3 fs_bwd 4 v_s 5 sigma0 6 sigma1 7 sigma2 8 k2 9 d2 10 k3 11 d3 12 w
     13 p2 14 kappa 15 e_fade 16 a_hump 17 l_hump 18 eps_ecc 19 l_ecc 20 psi_ecc 21 beta_rate
-    22 v_ref 23 beta_app 24 a_to_fwd 25 a_to_bwd 26 l_to
+    22 v_ref 23 beta_app 24 a_to_fwd 25 a_to_bwd 26 l_to 27 beta_sw 28 v_sw
 
 Speed: the transcendental functions are the cost, so the kernel skips those that cannot change
 the result in double precision:
@@ -24,6 +24,9 @@ Choices where the spec is silent (documented in docs/model-choices.md):
   * `rate_strengthening` in the z update uses the step velocity |u| (g(u) is g of u);
   * the state-dependent factors of the z update (fade, eccentricity, applied tracking, take-up
     overshoot) are those of the step's start sample k;
+  * `speed_weakening` (not in the spec's library either; docs/model-choices.md) is a factor on g
+    that falls with the speed: 1 - beta_sw (1 - exp(-|v|/v_sw)), of |u| in the z update like
+    rate_strengthening;
   * `takeup_overshoot` (not in the spec's library; docs/model-choices.md, "Effects beyond the
     spec") is a factor on g of direction d: h = 1 + a_d until slip starts after a reversal (the
     first sample where the backlash line reaches the cap g_d*h, or s >= d2 + d3), then
@@ -37,7 +40,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-NPARAM = 27
+NPARAM = 29
 THREE_STAGE = 0
 LUGRE = 1
 
@@ -135,7 +138,7 @@ def simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, F):
     k2 = P[8]; d2 = P[9]; k3 = P[10]; d3 = P[11]; w = P[12]
     p2 = P[13]; kappa = P[14]; e_fade = P[15]; a_h = P[16]; l_h = P[17]
     e_ecc = P[18]; l_ecc = P[19]; psi = P[20]; b_rate = P[21]; v_ref = P[22]; b_app = P[23]
-    a_to_f = P[24]; a_to_b = P[25]; l_to = P[26]
+    a_to_f = P[24]; a_to_b = P[25]; l_to = P[26]; b_sw = P[27]; inv_vsw = 1.0 / P[28]
 
     # a_sig is None when every effect is off: numba then compiles a specialisation in which all
     # effect code below is dead and removed
@@ -146,6 +149,7 @@ def simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, F):
     use_rate = False
     use_app = False
     use_to = False
+    use_sw = False
     if a_sig is not None:
         use_p2 = p2 != 1.0 and d2 > 0.0
         use_fade = kappa != 0.0
@@ -154,7 +158,8 @@ def simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, F):
         use_rate = b_rate != 0.0
         use_app = b_app != 0.0 and a_sig.shape[0] == n
         use_to = (a_to_f != 0.0 or a_to_b != 0.0) and model == THREE_STAGE
-    use_fac = use_fade or use_ecc or use_rate or use_app or use_to
+        use_sw = b_sw != 0.0
+    use_fac = use_fade or use_ecc or use_rate or use_app or use_to or use_sw
 
     thr_f = _skip_threshold(fc_f, fs_f)
     thr_b = _skip_threshold(fc_b, fs_b)
@@ -242,7 +247,9 @@ def simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, F):
                         fac0 *= 1.0 + a_to * math.exp(-xs * inv_l_to)
             fac_v = fac0
             if use_rate:
-                fac_v = fac0 * (1.0 + b_rate * math.log1p(vabs / v_ref))
+                fac_v *= 1.0 + b_rate * math.log1p(vabs / v_ref)
+            if use_sw:
+                fac_v *= 1.0 + b_sw * math.expm1(-vabs * inv_vsw)
 
         # -- g of the sample velocity's direction (d when v == 0), and a(v) = s0|v|/g
         fwd = vk > 0.0 or (vk == 0.0 and d > 0.0)
@@ -341,7 +348,9 @@ def simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, F):
                 else:
                     fac_u = fac0
                     if use_rate:
-                        fac_u = fac0 * (1.0 + b_rate * math.log1p(uabs / v_ref))
+                        fac_u *= 1.0 + b_rate * math.log1p(uabs / v_ref)
+                    if use_sw:
+                        fac_u *= 1.0 + b_sw * math.expm1(-uabs * inv_vsw)
                     if dx > 0.0:
                         gu = _stribeck(uabs, fc_f, fs_f, inv_vs, thr_f) * fac_u
                         zss = gu * inv_s0

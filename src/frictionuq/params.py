@@ -88,6 +88,10 @@ _EFFECT_PARAMS = [
           neutral=0.0, default=0.0),
     Param("l_to", "m", 1e-6, 0.2, "slip distance over which the take-up overshoot decays", "effect",
           "takeup_overshoot", default=3e-3, log_scale=True),
+    Param("beta_sw", "1", 0.0, 0.95, "fraction of the friction level lost at sliding speeds well "
+          "above v_sw", "effect", "speed_weakening", neutral=0.0, default=0.0),
+    Param("v_sw", "m/s", 1e-7, 10.0, "velocity scale of the speed weakening", "effect",
+          "speed_weakening", default=5e-2, log_scale=True),
 ]
 
 BASE_NAMES: tuple[str, ...] = tuple(p.name for p in _BASE)
@@ -106,8 +110,9 @@ for _p in _EFFECT_PARAMS:
 #: effects that need the record's measured applied-force signal
 NEEDS_APPLIED = frozenset({"applied_tracking"})
 #: effects beyond the spec's library (docs/model-choices.md): not screened by `discover` unless
-#: asked for (takeup_overshoot mimics a reversal_hump on decimated BRFD records)
-BEYOND_SPEC = frozenset({"takeup_overshoot"})
+#: asked for (takeup_overshoot mimics a reversal_hump on decimated BRFD records; speed_weakening
+#: has not been measured on the clean hidden-effect set)
+BEYOND_SPEC = frozenset({"takeup_overshoot", "speed_weakening"})
 #: effects that only make sense with the backlash stages
 NEEDS_BACKLASH = frozenset({"stage2_nonlinear", "takeup_overshoot"})
 

@@ -25,7 +25,8 @@ the campaign's own applied unit for `applied` (e.g. lb).
                 fit's)
     [report]    enabled = true, title, published = "none" | "brfd" | "mfd"
     [discrepancy] enabled = false, refit = true, tests/kinds (default: the fit's),
-                extra_effects = [] (effects beyond the spec to screen too: "takeup_overshoot"):
+                extra_effects = [] (effects beyond the spec to screen too: "takeup_overshoot",
+                "speed_weakening"):
                 the `frictionuq discover` stage (screen the effect library, name, refit)
 """
 from __future__ import annotations

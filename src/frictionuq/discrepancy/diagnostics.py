@@ -114,6 +114,11 @@ EXPECTED_SIGNATURES: dict[str, dict] = {
                            "odd_in_direction": True, "scale_param": "v_ref",
                            "description": "excess friction grows like ln(1 + |v|/v_ref), the same "
                                           "in both directions (d*r even in v)"},
+    "speed_weakening": {"views": ["velocity"], "shape": "saturating_decrease_in_abs_velocity",
+                        "odd_in_direction": True, "scale_param": "v_sw",
+                        "description": "excess friction falls like -(1 - exp(-|v|/v_sw)), the same "
+                                       "in both directions: lowest mid-stroke, highest at the "
+                                       "stroke ends"},
     "stage2_nonlinear": {"views": ["since_reversal", "displacement"], "shape": "localized_backlash",
                          "odd_in_direction": True, "scale_param": "d2",
                          "description": "structure confined to since_reversal < d2 (+ d3) after "

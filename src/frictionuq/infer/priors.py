@@ -172,6 +172,10 @@ EFFECT_PRIORS = {
     # floor of 0.01 amplitude a fit of one real 1 Hz test put a 0.3 mm spike on the take-up
     "takeup_overshoot": lambda s: [_u("a_to_fwd", -0.6, 2.0), _u("a_to_bwd", -0.6, 2.0),
                                    _lu("l_to", 0.04 * s.amp, 0.5 * s.amp)],
+    # the velocity scale from a tenth of the peak speed (below it the drop overlaps the
+    # Stribeck term's, v_s <= 0.3 v_max) to three times it (beyond, only beta_sw/v_sw is seen)
+    "speed_weakening": lambda s: [_u("beta_sw", 0.0, 0.6),
+                                  _lu("v_sw", 0.1 * max(s.v_max, 1e-9), 3.0 * max(s.v_max, 1e-9))],
 }
 
 
