@@ -24,14 +24,14 @@ Choices where the spec is silent (documented in docs/model-choices.md):
   * `rate_strengthening` in the z update uses the step velocity |u| (g(u) is g of u);
   * the state-dependent factors of the z update (fade, eccentricity, applied tracking, take-up
     overshoot) are those of the step's start sample k;
-  * `speed_weakening` (not in the spec's library either; docs/model-choices.md) is a factor on g
-    that falls with the speed: 1 - beta_sw (1 - exp(-|v|/v_sw)), of |u| in the z update like
-    rate_strengthening;
   * `takeup_overshoot` (not in the spec's library; docs/model-choices.md, "Effects beyond the
     spec") is a factor on g of direction d: h = 1 + a_d until slip starts after a reversal (the
     first sample where the backlash line reaches the cap g_d*h, or s >= d2 + d3), then
     h = 1 + a_d exp(-(s - s_b)/l_to), s_b the travel at that sample. 3-stage model only (like
-    stage2_nonlinear, it is refused with the LuGre model).
+    stage2_nonlinear, it is refused with the LuGre model);
+  * `speed_weakening` (not in the spec's library either; docs/model-choices.md) is a factor on g
+    that falls with the speed: 1 - beta_sw (1 - exp(-|v|/v_sw)), of |u| in the z update like
+    rate_strengthening.
 """
 from __future__ import annotations
 
