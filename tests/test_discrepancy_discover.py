@@ -9,9 +9,9 @@ import json
 import pytest
 
 from frictionuq.campaign import load_campaign
-from frictionuq.params import BEYOND_SPEC
 from frictionuq.discrepancy import fits
 from frictionuq.discrepancy.hidden import hidden_campaign
+from frictionuq.params import BEYOND_SPEC
 
 
 @pytest.mark.slow

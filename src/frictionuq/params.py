@@ -111,7 +111,8 @@ for _p in _EFFECT_PARAMS:
 NEEDS_APPLIED = frozenset({"applied_tracking"})
 #: effects beyond the spec's library (docs/model-choices.md): not screened by `discover` unless
 #: asked for (takeup_overshoot mimics a reversal_hump on decimated BRFD records; speed_weakening
-#: has not been measured on the clean hidden-effect set)
+#: passes the in-sample stage on every real ARTS level through the AR(1) likelihood's preference
+#: for a smooth residual, not through the data's level: docs/log-discrepancy.md, 2026-11-26)
 BEYOND_SPEC = frozenset({"takeup_overshoot", "speed_weakening"})
 #: effects that only make sense with the backlash stages
 NEEDS_BACKLASH = frozenset({"stage2_nonlinear", "takeup_overshoot"})
