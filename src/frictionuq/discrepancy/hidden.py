@@ -64,8 +64,11 @@ def draw_effect(effect: str | None, rng, amp: float, v_max: float, energy: float
         "applied_tracking": {"beta_app": float(u(0.6, 1.0))},
         "takeup_overshoot": {"a_to_fwd": float(u(0.3, 0.6)), "a_to_bwd": float(u(-0.25, 0.25)),
                              "l_to": float(u(0.08, 0.2) * amp)},
-        "speed_weakening": {"beta_sw": float(u(0.2, 0.35)), "v_sw": float(u(0.3, 0.6) * v_max)},
     }
+    # effects added later draw only when hidden, after the table: every other campaign keeps the
+    # random stream, hence the noise, that it had before they were added
+    if effect == "speed_weakening":
+        return {"beta_sw": float(u(0.2, 0.35)), "v_sw": float(u(0.3, 0.6) * v_max)}
     return table[effect]
 
 
