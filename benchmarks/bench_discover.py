@@ -35,7 +35,8 @@ def main(argv=None) -> int:
                     default=[None] + [e for e in P.EFFECTS if e not in P.BEYOND_SPEC],
                     help="hidden effects (none: nothing hidden); default: none and the spec's library")
     ap.add_argument("--extra-effects", nargs="*", default=[],
-                    help="effects beyond the spec to screen as candidates too (takeup_overshoot, speed_weakening)")
+                    help="effects beyond the spec to screen as candidates too "
+                         f"({', '.join(sorted(P.BEYOND_SPEC))})")
     ap.add_argument("--simulate-at", choices=["raw", "kept"], default="raw",
                     help="decimated records simulated at the raw rate (default, as the fits) or on "
                     "the kept samples (the rule's first calibration)")

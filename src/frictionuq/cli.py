@@ -316,8 +316,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--likelihood", choices=["iid", "ar1"], default="ar1")
     s.add_argument("--no-refit", action="store_true", help="screen and name only (no MCMC refit)")
     _add_drive_lowpass(s)
+    from .params import BEYOND_SPEC
     s.add_argument("--extra-effect", action="append", metavar="EFFECT",
-                   help="also screen this effect beyond the spec's library (takeup_overshoot, speed_weakening)")
+                   help="also screen this effect beyond the spec's library "
+                        f"({', '.join(sorted(BEYOND_SPEC))})")
     _add_selection(s, "cap on stored sampler steps of the refit")
     s.set_defaults(func=_cmd_discover)
 

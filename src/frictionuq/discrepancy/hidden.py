@@ -51,25 +51,38 @@ def strong_motion(t, x, seconds: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def draw_effect(effect: str | None, rng, amp: float, v_max: float, energy: float) -> dict:
-    """Effect parameters within realistic ranges (scaled to the drive where they are lengths)."""
-    u = rng.uniform
-    table = {
-        None: {},
-        "stage2_nonlinear": {"p2": float(u(1.8, 3.0))},
-        "thermal_fade": {"kappa": float(u(0.15, 0.3)), "e_fade": float(u(0.2, 0.5) * energy)},
-        "reversal_hump": {"a_hump": float(u(0.3, 0.6)), "l_hump": float(u(0.06, 0.15) * amp)},
-        "eccentricity": {"eps_ecc": float(u(0.12, 0.25)), "l_ecc": float(u(0.4, 0.8) * amp),
-                         "psi_ecc": float(u(-3.0, 3.0))},
-        "rate_strengthening": {"beta_rate": float(u(0.2, 0.4)), "v_ref": float(u(0.05, 0.2) * v_max)},
-        "applied_tracking": {"beta_app": float(u(0.6, 1.0))},
-        "takeup_overshoot": {"a_to_fwd": float(u(0.3, 0.6)), "a_to_bwd": float(u(-0.25, 0.25)),
-                             "l_to": float(u(0.08, 0.2) * amp)},
-    }
-    # effects added later draw only when hidden, after the table: every other campaign keeps the
-    # random stream, hence the noise, that it had before they were added
-    if effect == "speed_weakening":
-        return {"beta_sw": float(u(0.2, 0.35)), "v_sw": float(u(0.3, 0.6) * v_max)}
-    return table[effect]
+    """Effect parameters within realistic ranges (scaled to the drive where they are lengths).
+
+    The effects of _ALWAYS_DRAWN are all drawn, whichever is hidden (the campaigns' random stream
+    since 2026-11-22); an effect added later goes in _DRAWN_WHEN_HIDDEN and draws after them,
+    only when hidden, so that adding it leaves every other campaign's noise as it was."""
+    drawn = {name: f(rng.uniform, amp, v_max, energy) for name, f in _ALWAYS_DRAWN.items()}
+    if effect in _DRAWN_WHEN_HIDDEN:
+        return _DRAWN_WHEN_HIDDEN[effect](rng.uniform, amp, v_max, energy)
+    return drawn[effect]
+
+
+_ALWAYS_DRAWN = {
+    None: lambda u, amp, v_max, energy: {},
+    "stage2_nonlinear": lambda u, amp, v_max, energy: {"p2": float(u(1.8, 3.0))},
+    "thermal_fade": lambda u, amp, v_max, energy: {"kappa": float(u(0.15, 0.3)),
+                                                   "e_fade": float(u(0.2, 0.5) * energy)},
+    "reversal_hump": lambda u, amp, v_max, energy: {"a_hump": float(u(0.3, 0.6)),
+                                                    "l_hump": float(u(0.06, 0.15) * amp)},
+    "eccentricity": lambda u, amp, v_max, energy: {"eps_ecc": float(u(0.12, 0.25)),
+                                                   "l_ecc": float(u(0.4, 0.8) * amp),
+                                                   "psi_ecc": float(u(-3.0, 3.0))},
+    "rate_strengthening": lambda u, amp, v_max, energy: {"beta_rate": float(u(0.2, 0.4)),
+                                                         "v_ref": float(u(0.05, 0.2) * v_max)},
+    "applied_tracking": lambda u, amp, v_max, energy: {"beta_app": float(u(0.6, 1.0))},
+    "takeup_overshoot": lambda u, amp, v_max, energy: {"a_to_fwd": float(u(0.3, 0.6)),
+                                                       "a_to_bwd": float(u(-0.25, 0.25)),
+                                                       "l_to": float(u(0.08, 0.2) * amp)},
+}
+_DRAWN_WHEN_HIDDEN = {
+    "speed_weakening": lambda u, amp, v_max, energy: {"beta_sw": float(u(0.2, 0.35)),
+                                                      "v_sw": float(u(0.3, 0.6) * v_max)},
+}
 
 
 def hidden_campaign(out_dir, device: str, effect: str | None, seed: int,
