@@ -115,6 +115,28 @@ def test_law_rows_at_interpolated_forces(fit_dir, monkeypatch):
     assert list(df["applied"]) == sorted(df["applied"])
 
 
+def test_law_rows_pinned_at_the_prior_box_are_flagged(fit_dir, monkeypatch, capsys):
+    """Law draws clipped to the prior box (draws_at clips them) give an interval that is the box,
+    not an estimate: the rows say so (at_bounds) and the table marks them; posterior rows do not."""
+    from frictionuq.advantage import AT_BOUNDS_FLAG, format_table
+    mod = types.ModuleType("frictionuq.infer.law")
+
+    def draws_at(fit_dir, applied_si, n, rng):
+        z = np.random.default_rng(0).normal(0, 1, n)
+        pinned = np.clip(140.0 * applied_si * np.exp(z), 100.0 * applied_si, 200.0 * applied_si)
+        return {"fc_fwd": pinned, "fc_bwd": 120.0 * applied_si * np.exp(0.01 * z)}, "three_stage", ()
+    mod.draws_at = draws_at
+    monkeypatch.setitem(sys.modules, "frictionuq.infer.law", mod)
+    df = advantage(fit_dir)
+    law = df[df["source"] == "force-dependence law"].set_index("direction")
+    assert law.loc["fwd", "at_bounds"] > 0.5          # |z| > ln(1.4) or ln(0.71): about 65 %
+    assert law.loc["bwd", "at_bounds"] < AT_BOUNDS_FLAG
+    assert (df[df["source"] == "posterior"]["at_bounds"] < AT_BOUNDS_FLAG).all()
+    text = format_table(df)
+    assert sum(line.endswith(" *") for line in text.splitlines()) == 1
+    assert "set by the prior, not the data" in text
+
+
 def test_write_and_cli(fit_dir, tmp_path, capsys):
     out = tmp_path / "adv"
     assert main(["advantage", str(fit_dir), "--out", str(out)]) == 0

@@ -37,9 +37,11 @@ from .fitdir import campaign_applied_unit, campaign_of, load_posterior, load_sum
 
 COLUMNS = ["fit", "source", "applied", "applied_unit", "applied_display", "direction",
            "fc_mean", "C_mean", "C_q2.5", "C_q97.5", "C_unit", "mu_mean", "mu_q2.5", "mu_q97.5",
-           "C_design", "mu_design", "C_paper", "mu_paper", "paper"]
+           "C_design", "mu_design", "C_paper", "mu_paper", "paper", "at_bounds"]
 UNITS = {"applied": "N or Pa (applied_unit)", "fc_mean": "N", "C": "C_unit (N/N or N/Pa)",
-         "mu": "1"}
+         "mu": "1", "at_bounds": "1 (fraction of the draws)"}
+#: a row whose draws sit at the prior box this often has an interval set by the box, not the data
+AT_BOUNDS_FLAG = 0.025
 LAW_DRAWS = 400
 LAW_SEED = 1
 
@@ -87,6 +89,12 @@ def _rows(fit_id, source, applied, fc: dict, unit: str, geo, device) -> list[dic
     out = []
     for direction in ("fwd", "bwd"):
         C = np.asarray(fc[direction], float) / applied
+        f = np.asarray(fc[direction], float)
+        # draws pinned at the prior box (the law's draws are clipped to it): the share of draws
+        # equal to the smallest or the largest value (continuous draws tie there only by chance;
+        # a fixed parameter's draws are all equal and have no interval to flag)
+        at_bounds = float(np.mean(f == f.min()) + np.mean(f == f.max())) \
+            if f.size > 1 and f.max() > f.min() else 0.0
         row = {"fit": fit_id, "source": source, "applied": applied, "applied_unit": "Pa" if pressure else "N",
                "applied_display": f"{U.from_si(applied, 'applied', unit):g} {unit}",
                "direction": direction, "fc_mean": float(np.mean(fc[direction])),
@@ -94,7 +102,7 @@ def _rows(fit_id, source, applied, fc: dict, unit: str, geo, device) -> list[dic
                "C_q97.5": float(np.percentile(C, 97.5)), "C_unit": "N/Pa" if pressure else "N/N",
                "mu_mean": float("nan"), "mu_q2.5": float("nan"), "mu_q97.5": float("nan"),
                "C_design": C_d if not pressure else float("nan"),
-               "mu_design": mu_d if not pressure else float("nan")}
+               "mu_design": mu_d if not pressure else float("nan"), "at_bounds": at_bounds}
         if ok_geo:
             mu = mu_from_C(C, geo["drum_radius"], geo["damping_radius"], geo["wrap_deg"])
             row.update({"mu_mean": float(np.mean(mu)), "mu_q2.5": float(np.percentile(mu, 2.5)),
@@ -179,7 +187,12 @@ def format_table(df: pd.DataFrame) -> str:
             f"{g(d['mu_mean'], '.3f'):>8} "
             f"{'[' + g(d['mu_q2.5'], '.3f') + ', ' + g(d['mu_q97.5'], '.3f') + ']':>17} "
             f"{g(d['C_design'], '.4g'):>8} {g(d['mu_design'], '.3f'):>9} "
-            f"{g(d['C_paper'], '.4g'):>9} {g(d['mu_paper'], '.3f'):>8}")
+            f"{g(d['C_paper'], '.4g'):>9} {g(d['mu_paper'], '.3f'):>8}"
+            + (" *" if d["at_bounds"] > AT_BOUNDS_FLAG else ""))
+    if any(d["at_bounds"] > AT_BOUNDS_FLAG for d in df.to_dict(orient="records")):
+        lines.append(f"* more than {AT_BOUNDS_FLAG:.1%} of the draws sit at the prior box's bounds: "
+                     "the interval is set by the prior, not the data (a law from few or "
+                     "scattered levels)")
     lines.append("C = fc / applied (BRFD Eq. 10, fc of the direction); mu = ln(1 + C r_b / r) / phi; "
                  "intervals: 2.5-97.5 % of the posterior (law rows: of the law's draws)")
     return "\n".join(lines)

@@ -167,6 +167,13 @@ def advantage(ctx) -> list[dict]:
                   "force of the direction); mu = ln(1 + C r_b / r) / phi from the campaign's geometry. "
                   "Intervals: 2.5-97.5 % of the posterior draws (law rows: of the law's draws).")]
     out.append(B.html(table(cols, rows=trows, caption="mechanical advantage and friction coefficient")))
+    from ...advantage import AT_BOUNDS_FLAG
+    pinned = sorted({f"{r['x']:g} {unit}" for r in rows
+                     if float(r.get("at_bounds", 0.0) or 0.0) > AT_BOUNDS_FLAG})
+    if pinned:
+        out.append(B.note(f"At {', '.join(pinned)} more than {AT_BOUNDS_FLAG:.1%} of the draws sit "
+                          "at the prior box's bounds: those intervals are set by the prior, not by "
+                          "the data (a force-dependence law from few or scattered levels)."))
     out.append(B.figure(advantage_figure(rows, unit, "mechanical advantage against the applied force"),
                         "mechanical advantage against the applied force",
                         "Mean and 95 % interval per direction, with the design value and the "
