@@ -40,6 +40,11 @@ def main(argv=None) -> int:
     ap.add_argument("--simulate-at", choices=["raw", "kept"], default="raw",
                     help="decimated records simulated at the raw rate (default, as the fits) or on "
                     "the kept samples (the rule's first calibration)")
+    ap.add_argument("--ramp", action="store_true", help="a fourth test in each campaign: a sine "
+                    "of geometrically growing amplitude (hidden.ramp_drive)")
+    ap.add_argument("--ramp-start", type=float, default=None, help="with --ramp: the first "
+                    "cycle's amplitude as a fraction of the full one (default hidden.RAMP_START; "
+                    "1: a constant-amplitude control)")
     ap.add_argument("--verbose", action="store_true", help="also the top two candidates' gain per "
                     "held-out unit and the decision's reason")
     a = ap.parse_args(argv)
@@ -51,7 +56,9 @@ def main(argv=None) -> int:
                 eff = None if eff in (None, "none") else eff
                 for seed in a.seeds:
                     d = Path(tmp) / f"{dev}-{eff}-{seed}"
-                    ans = hidden_campaign(d / "c", dev, eff, seed=seed, short=not a.full)
+                    ans = hidden_campaign(d / "c", dev, eff, seed=seed, short=not a.full,
+                                          ramp=a.ramp, **({} if a.ramp_start is None else
+                                                           {"ramp_start": a.ramp_start}))
                     t0 = time.perf_counter()
                     doc = discover(d / "c", d / "out", cfg, seed=1, refit=a.refit,
                                    extra_effects=tuple(a.extra_effects))

@@ -155,3 +155,31 @@ def test_short_campaigns_replay_the_strong_motion(tmp_path):
     assert n == {"s": 3000, "f": 2000}, n
     with pytest.raises(ValueError, match="eq_from"):
         hidden_campaign(tmp_path / "x", "mfd", None, seed=1, short=True, eq_from="end")
+
+
+def test_ramped_test_is_appended_without_moving_the_others(tmp_path):
+    """hidden_campaign(ramp=True) appends a fourth test, a sine whose amplitude grows
+    geometrically from RAMP_START x to the full amplitude; the three other tests, the effect's
+    draws and the answer are byte for byte as without it (its noise is drawn after theirs).
+    ramp_start=1 gives the constant-amplitude control of the same length. Deterministic."""
+    import numpy as np
+    from frictionuq.discrepancy.hidden import RAMP_CYCLES, RAMP_FREQ_HZ, RAMP_START, ramp_drive
+    a = hidden_campaign(tmp_path / "a", "brfd", "stage2_nonlinear", seed=12, short=True)
+    b = hidden_campaign(tmp_path / "b", "brfd", "stage2_nonlinear", seed=12, short=True, ramp=True)
+    assert a["parameters"] == b["parameters"]
+    assert [t["id"] for t in b["tests"]] == [t["id"] for t in a["tests"]] + ["ramp-0.5Hz"]
+    for t in a["tests"]:
+        f = f"tests/{t['id']}.csv"
+        assert (tmp_path / "a" / f).read_bytes() == (tmp_path / "b" / f).read_bytes()
+    camp = load_campaign(tmp_path / "b")
+    ramp = camp.tests[-1]
+    assert ramp.kind == "other" and ramp.frequency_hz == RAMP_FREQ_HZ
+    x = ramp.record.x
+    cyc = np.array_split(x[:-1], RAMP_CYCLES)
+    peaks = np.array([np.max(np.abs(c)) for c in cyc])
+    amp = np.max(np.abs(camp.tests[0].record.x))
+    assert peaks[0] < 3 * RAMP_START * amp and 0.85 * amp < peaks[-1] <= amp   # the envelope at the last peak
+    ratios = peaks[1:] / peaks[:-1]       # geometric: the same ratio from cycle to cycle
+    assert np.allclose(ratios, (1 / RAMP_START) ** (1 / RAMP_CYCLES), rtol=0.1), ratios
+    t, xc = ramp_drive(RAMP_FREQ_HZ, amp, start=1.0)
+    assert t.size == x.size and np.allclose(np.abs(xc).max(), amp, rtol=1e-3)

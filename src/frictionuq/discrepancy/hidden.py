@@ -5,6 +5,10 @@ parameters): two harmonics and one ground-motion replay, about 5,000 samples eac
 one effect of the library switched on at parameters drawn at random within realistic ranges, and
 AR(1) force noise. The generator's answer (effect, parameters, noise scale) is returned separately
 and written to a file OUTSIDE the campaign folder, so the workflow never sees it.
+
+ramp=True appends a fourth test, a sine of geometrically growing amplitude (an experiment of
+2026-11-26 on stage2_nonlinear: 2 of 8 BRFD draws named against 1 of 8, none of 4 MFD;
+not used by the CI or the benchmark's default set; docs/log-discrepancy.md).
 """
 from __future__ import annotations
 
@@ -85,14 +89,34 @@ _DRAWN_WHEN_HIDDEN = {
 }
 
 
+RAMP_FREQ_HZ = 0.5
+RAMP_CYCLES = 10
+RAMP_START = 0.02          # first cycle's amplitude, fraction of the full amplitude
+
+
+def ramp_drive(frequency_hz: float, amp: float, cycles: int = RAMP_CYCLES,
+               start: float = RAMP_START, fs: float = 100.0) -> tuple[np.ndarray, np.ndarray]:
+    """A sine whose amplitude grows geometrically from start x amp to amp over `cycles` cycles:
+    reversals at amplitudes spread evenly on a log scale (from inside the backlash to the full
+    stroke), like the ramped sines of the ARTS programme (data/brfd-arts-d1)."""
+    n = int(round(cycles / frequency_hz * fs))
+    t = np.arange(n + 1) / fs
+    env = amp * np.exp(np.log(start) * (1.0 - t / t[-1]))
+    return t, env * np.sin(2 * np.pi * frequency_hz * t)
+
+
 def hidden_campaign(out_dir, device: str, effect: str | None, seed: int,
                     answer_path=None, short: bool = False, eq_seconds: float = SHORT_EQ_SECONDS,
-                    eq_from: str = "strong") -> dict:
+                    eq_from: str = "strong", ramp: bool = False,
+                    ramp_start: float = RAMP_START) -> dict:
     """Write a 3-test campaign with `effect` hidden (None: no effect) to out_dir; returns the
     answer {effect, parameters, noise_sd_N, ...} (also written to answer_path if given).
     short: 4 cycles per harmonic and `eq_seconds` of the ground motion, from its strong motion
     (eq_from="strong", strong_motion) or from its start ("start": the CI campaigns before
-    2026-11-25, night, whose Kobe replay was the first 20 s)."""
+    2026-11-25, night, whose Kobe replay was the first 20 s). ramp: a fourth test, a sine of
+    geometrically growing amplitude (ramp_drive) from ramp_start x the full amplitude (1: a
+    constant-amplitude sine of the same length, the control that adds the data without the
+    small reversals)."""
     if eq_from not in ("strong", "start"):
         raise ValueError(f"hidden_campaign: eq_from must be 'strong' or 'start', got {eq_from!r}")
     out = Path(out_dir)
@@ -115,7 +139,11 @@ def hidden_campaign(out_dir, device: str, effect: str | None, seed: int,
         t, x = strong_motion(t, x, eq_seconds) if eq_from == "strong" else \
             (t[t < eq_seconds], x[t < eq_seconds])
     drives.append(("eq-kobe", "earthquake", None, t, x))
-    v_max = max(float(np.max(np.abs(np.gradient(x, t)))) for _, _, _, t, x in drives)
+    if ramp:      # appended last: the other tests' random draws stay as without it
+        t, x = ramp_drive(RAMP_FREQ_HZ, amp, start=ramp_start)
+        drives.append((f"ramp-{RAMP_FREQ_HZ:g}Hz", "other", RAMP_FREQ_HZ, t, x))
+    v_max = max(float(np.max(np.abs(np.gradient(x, t)))) for tid, _, _, t, x in drives
+                if not tid.startswith("ramp"))     # the effect draws as without the ramp
     fc = 0.5 * (p["fc_fwd"] + p["fc_bwd"])
     e_ref = 4 * fc * amp * 10                   # energy of ~10 harmonic cycles (J)
     eff_p = draw_effect(effect, rng, amp, v_max, e_ref)
