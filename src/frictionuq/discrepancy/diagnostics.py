@@ -61,8 +61,9 @@ null built from the record itself (20 alarms in 100): `block_capped` says when t
 
 p = (1 + #{T* >= T}) / (1 + n_perm); the smallest attainable p is 1/(1 + n_perm). All views and
 the spectrum share the same permutations; Holm's step-down correction over them (family size
-m = number of views + 1) keeps the family-wise error rate at `alpha`. With the default
-n_perm = 999, p_min = 0.001 < 0.01/8. Bin standard errors are the standard deviations of the
+m = number of views + 1, + 1 for the high-frequency bursts of chatter.py, reported as `chatter`)
+keeps the family-wise error rate at `alpha`. With the default n_perm = 999, p_min = 0.001 <
+0.01/9. Bin standard errors are the standard deviations of the
 bin means over the permutations, so they include the autocorrelation.
 
 Position-locked spectrum. For each direction, the bin means of d*r on a uniform grid of N_GRID
@@ -83,6 +84,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import chatter as C
 from .features import FEATURE_UNITS, features as compute_features
 
 VIEW_ORDER = ("displacement", "velocity", "time", "cycle", "since_reversal", "energy", "applied")
@@ -303,13 +305,38 @@ def diagnose(t, x, resid, spread=None, features=None, alpha: float = 0.01, n_per
             if name in TREND_VIEWS:
                 setup[name].update(trend=_trend_basis(f, up), trend_null=np.empty(n_perm))
     spec = _Spectrum(x, up, n_grid)
+    burst = None        # high-frequency bursts against since_reversal (chatter.py)
+    if "since_reversal" in feats and t is not None:
+        s_rev = np.asarray(feats["since_reversal"], dtype=float)
+        b_s, nb_s = _bins(s_rev, n_bins, integer=False)
+        sig = C.highpass(t, x, rc) if nb_s >= 2 else None
+        if sig is not None:
+            hp, f_cut = sig
+            lock = C.lock_cells(up, s_rev)
+            h = C.power(hp, *lock)
+            cell_s = 2 * b_s + up
+            burst = dict(hp=hp, lock=lock, h=h, f_cut=f_cut, cell=cell_s, b=b_s, nb=nb_s,
+                         n_c=np.bincount(cell_s, minlength=2 * nb_s).astype(float),
+                         n_b=np.bincount(b_s, minlength=nb_s).astype(float),
+                         ss=float(np.sum((h - h.mean()) ** 2)) or 1.0,
+                         null=np.empty(n_perm), null_bins=np.empty((n_perm, nb_s)))
 
     rng = np.random.default_rng(seed)
     T_null = {name: np.empty(n_perm) for name in setup}
     acc = {name: np.zeros((4, s["nb"])) for name, s in setup.items()}   # sum, sum^2 of d*r and d*z
     P_null, obs = (np.empty((n_perm, spec.k.size)) if spec.ok else None), {}
     for p in range(-1, n_perm):                     # p = -1: the observed residual
-        rp = r if p < 0 else rc[block_permutation(n, block, rng)]
+        perm = None if p < 0 else block_permutation(n, block, rng)
+        rp = r if perm is None else rc[perm]
+        if burst is not None:
+            hp_ = burst["h"] if perm is None else C.power(burst["hp"][perm], *burst["lock"])
+            Th = _stat(np.bincount(burst["cell"], weights=hp_, minlength=2 * burst["nb"]),
+                       burst["n_c"], n_d, burst["ss"])
+            if p < 0:
+                burst["obs"] = Th
+            else:
+                burst["null"][p] = Th
+                burst["null_bins"][p] = np.bincount(burst["b"], weights=hp_, minlength=burst["nb"]) / burst["n_b"]
         dz = None if sp is None else d * rp / sp
         for name, s in setup.items():
             S = np.bincount(s["cell"], weights=rp, minlength=2 * s["nb"])
@@ -351,8 +378,14 @@ def diagnose(t, x, resid, spread=None, features=None, alpha: float = 0.01, n_per
                     "wavelength_band_m": [_f(1.0 / spec.k[-1]), _f(1.0 / spec.k[0])],
                     "critical_ratio": _f(np.quantile(null_max, 1.0 - alpha / len(pvals))),
                     "wavenumber_per_m": _fl(spec.k), "power_ratio": _fl(ratio)}
+    bursts = None
+    if burst is not None:
+        bursts = C.result(burst["obs"], burst["null"], np.sqrt(np.quantile(burst["null_bins"], 0.95, axis=0)),
+                          burst["h"], burst["f_cut"], burst["b"], burst["nb"], s_rev, up)
+        pvals["chatter"] = bursts["p_value"]
     adj = _holm(pvals)
-    for name, v in list(out_views.items()) + ([("spectrum", spectrum)] if spectrum else []):
+    for name, v in list(out_views.items()) + ([("spectrum", spectrum)] if spectrum else []) + \
+            ([("chatter", bursts)] if bursts else []):
         v["p_adjusted"], v["significant"] = _f(adj[name]), bool(adj[name] <= alpha)
     return {"n_samples": n, "alpha": alpha, "correction": "holm", "family_size": len(pvals),
             "n_perm": n_perm, "p_min": 1.0 / (1.0 + n_perm), "seed": seed, "n_bins": n_bins,
@@ -361,4 +394,5 @@ def diagnose(t, x, resid, spread=None, features=None, alpha: float = 0.01, n_per
                      "n_blocks": max(1, int(round(n / block))) if block > 1 else n,
                      "block_capped": block_length is None and BLOCK_FACTOR * tau > n / MIN_BLOCKS},
             "residual_sd_n": _f(np.sqrt(ss / n)), "views": out_views, "spectrum": spectrum,
+            "chatter": bursts,
             "significant": [k for k, v in adj.items() if v <= alpha]}

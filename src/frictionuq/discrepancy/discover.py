@@ -49,6 +49,19 @@ def _model_forces(level_tests, cfg, effects, map_values: dict) -> list[tuple]:
     return [(rec, lp.simulate(th, rec)[0] + off) for rec in lp.records]
 
 
+def _label(view: str, d: dict) -> str:
+    """A significant view as the report lists it (the spectrum with its wavelength, the
+    high-frequency bursts with their band and where they sit)."""
+    if view == "spectrum":
+        return f"spectrum ({d['spectrum']['wavelength_m'] * 1e3:.3g} mm)"
+    if view == "chatter":
+        c = d["chatter"]
+        lo, hi = c["peak_since_reversal_m"]
+        return (f"chatter (bursts > {c['highpass_hz']:.3g} Hz, strongest {lo * 1e3:.3g}-{hi * 1e3:.3g} mm "
+                f"after the reversal, {c['peak_rms_n']:.3g} N rms)")
+    return view
+
+
 def _gap(level_tests, cfg, level: dict, named: str, seed: int, fig_dir: Path, log) -> list[dict]:
     """The gap before and after, per test of a level: residual diagnostics (diagnostics.diagnose)
     at the baseline's MAP and, when an effect is named, at the MAP with it (figures
@@ -66,8 +79,7 @@ def _gap(level_tests, cfg, level: dict, named: str, seed: int, fig_dir: Path, lo
                          seed=seed)
             name = f"residuals-{tag.replace(' ', '-')}-{rec.id}.png"
             atomic.write_bytes(fig_dir / name, residual_figure(d, None, title=f"{rec.id}: residuals, {tag}"))
-            sig = [k if k != "spectrum" else f"spectrum ({d['spectrum']['wavelength_m'] * 1e3:.3g} mm)"
-                   for k in d["significant"]]
+            sig = [_label(k, d) for k in d["significant"]]
             log(f"diagnostics {tag} {rec.id}: significant structure in {', '.join(sig) or 'none'}")
             out.append({"test": rec.id, "model": tag, "figure": name, "significant_views": sig,
                         "rmse": centred_rmse(rec.y - F), "diagnostics": d})

@@ -2,7 +2,8 @@
 friction d*(data - model) (N) +- 2 standard errors (from the block-permutation null), the views
 that are significant after the Holm correction framed and titled in red, and a panel with the
 position-locked spectrum (power relative to its null mean against wavelength) and its critical
-level. Feature axes are in display units (mm, mm/s, s, kJ); forces in N.
+level, and one with the high-frequency bursts (chatter.py: rms of the residual's unrepeated
+high-frequency part against the travel since the reversal, beside the null's 95 % per bin). Feature axes are in display units (mm, mm/s, s, kJ); forces in N.
 """
 from __future__ import annotations
 
@@ -83,11 +84,30 @@ def _spectrum_panel(ax, spec: dict | None):
     _mark(ax, spec["significant"])
 
 
+def _chatter_panel(ax, ch: dict):
+    b = ch["bins"]
+    c = _arr(b["centre"]) * 1e3
+    colour = SIGNIFICANT if ch["significant"] else "C0"
+    ax.plot(c, _arr(b["rms"]), "o-", ms=3, lw=1.2, color=colour, label="high-frequency residual rms, bin")
+    ax.plot(c, _arr(b["rms_fwd"]), ":", color="C2", lw=1)
+    ax.plot(c, _arr(b["rms_bwd"]), ":", color="C1", lw=1)
+    ax.plot(c, _arr(b["null_rms_q95"]), "--", color="0.4", lw=1, label="null 95 % (per bin)")
+    verdict = "SIGNIFICANT" if ch["significant"] else "not significant"
+    ax.set_title(f"bursts > {ch['highpass_hz']:.3g} Hz (chatter): p_adj = {ch['p_adjusted']:.3g} "
+                 f"({verdict})", fontsize=9, color=SIGNIFICANT if ch["significant"] else "black")
+    ax.set_xlabel("travel since last reversal s (mm)")
+    ax.set_ylabel("rms of the unrepeated residual (N)")
+    ax.legend(fontsize=7, loc="upper right")
+    _mark(ax, ch["significant"])
+
+
 def build_figure(diag: dict, title: str | None = None):
-    """The matplotlib Figure of `diag` (a `diagnose` result): len(views) + 1 axes."""
+    """The matplotlib Figure of `diag` (a `diagnose` result): len(views) + 1 axes, + 1 for the
+    high-frequency bursts when the record has them (`chatter`)."""
     pyplot = _plt()
     views = list(diag["views"].values())
-    n_panels = len(views) + 1
+    ch = diag.get("chatter")
+    n_panels = len(views) + 1 + (ch is not None)
     ncols = min(3, n_panels)
     nrows = math.ceil(n_panels / ncols)
     fig, axes = pyplot.subplots(nrows, ncols, figsize=(4.2 * ncols, 3.3 * nrows + 0.8), squeeze=False)
@@ -95,6 +115,8 @@ def build_figure(diag: dict, title: str | None = None):
     for ax, view in zip(flat, views):
         _view_panel(ax, view)
     _spectrum_panel(flat[len(views)], diag.get("spectrum"))
+    if ch is not None:
+        _chatter_panel(flat[len(views) + 1], ch)
     for ax in flat[n_panels:]:
         fig.delaxes(ax)
     if views:

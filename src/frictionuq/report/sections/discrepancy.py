@@ -52,6 +52,16 @@ def gap_blocks(folder, d: dict) -> list[dict]:
         out.append(B.html(table(["test", "model", "RMSE at its MAP (N)",
                                  "views with significant structure (Holm, 1 %)"],
                                 rows, caption="the gap before and after, per test")))
+    chat = sorted({g["test"] for g in diags if g["model"] == "baseline"
+                   and any(v.startswith("chatter") for v in g["significant_views"])})
+    if chat:
+        out.append(B.para(
+            f"High-frequency bursts after the reversals (stick-slip chatter) are significant in "
+            f"{', '.join(chat)}: the residual above the band shown carries more power at some "
+            "travels since the reversal than at others, and not as a shape repeated every cycle "
+            "(that part is removed before the test). No effect of the library can close this "
+            "part of the gap: a deterministic model cannot follow an oscillation whose phase "
+            "changes from cycle to cycle."))
     seen = set()
     for g in diags:
         name = g.get("loop_figure")
@@ -66,5 +76,6 @@ def gap_blocks(folder, d: dict) -> list[dict]:
         if p.is_file():
             out.append(B.figure(p.read_bytes(), f"residuals {g['test']} {g['model']}",
                                 f"{g['test']}, {g['model']}: binned residual means (N) per view, "
-                                "significant views marked; position-locked spectrum"))
+                                "significant views marked; position-locked spectrum; high-frequency "
+                                "bursts against the travel since the reversal"))
     return out
