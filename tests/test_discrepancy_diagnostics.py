@@ -276,11 +276,15 @@ def test_chatter_bursts_calibrated_found_and_not_fooled_by_a_repeated_misfit():
     assert found >= 18 and fooled <= 2, (found, fooled)
 
 
-def test_chatter_skipped_where_the_band_does_not_fit():
+def test_chatter_skipped_where_the_band_does_not_fit_or_when_asked():
     """A record sampled too coarsely for HF_FACTOR x the drive frequency (a 1 Hz sine at 15 Hz)
-    gets no burst test, and the Holm family is the views and the spectrum alone."""
+    gets no burst test, and the Holm family is the views and the spectrum alone; nor does a
+    record diagnosed with bursts=False."""
     t = np.arange(150) / 15.0
     x = AMP * np.sin(2 * np.pi * t)
     dg = diagnose(t, x, _noise(5, t.size), n_perm=49)
     assert dg["chatter"] is None and "chatter" not in dg["significant"]
     assert dg["family_size"] == len(dg["views"]) + (dg["spectrum"] is not None)
+    t, x, ft = _chatter_record()          # asked not to (discover, on earthquake records)
+    dg = diagnose(t, x, _noise(5, t.size), features=ft, n_perm=49, bursts=False)
+    assert dg["chatter"] is None and dg["family_size"] == len(dg["views"]) + 1

@@ -264,14 +264,16 @@ def _view_result(name, s, obs, tn, acc, n_perm, ss, n):
 
 def diagnose(t, x, resid, spread=None, features=None, alpha: float = 0.01, n_perm: int = N_PERM,
              seed: int = 0, *, n_bins: int = N_BINS, force_model=None, eps: float = 0.0, applied=None,
-             views=None, block_length: float | None = None, n_grid: int = N_GRID) -> dict:
+             views=None, block_length: float | None = None, n_grid: int = N_GRID,
+             bursts: bool = True) -> dict:
     """Residual diagnostics of one record (see the module docstring); a JSON-ready dict.
 
     resid: data - posterior predictive median (N); spread: posterior predictive spread (N,
     scalar or per sample) for the bin means in spread units; features: from
     `frictionuq.discrepancy.features` (None: computed from t, x, force_model, eps, applied);
     views: feature names to test (default: all present); block_length: mean block length of the
-    null in samples (None: automatic; 1: a naive iid shuffle, for comparison only)."""
+    null in samples (None: automatic; 1: a naive iid shuffle, for comparison only); bursts: run
+    the high-frequency burst test (chatter.py; only on records whose half-cycles repeat)."""
     x, r = np.asarray(x, dtype=float), np.asarray(resid, dtype=float)
     if r.shape != x.shape or not np.all(np.isfinite(r)):
         raise ValueError(f"resid must be finite and as long as x ({r.size} vs {x.size} samples)")
@@ -306,7 +308,7 @@ def diagnose(t, x, resid, spread=None, features=None, alpha: float = 0.01, n_per
                 setup[name].update(trend=_trend_basis(f, up), trend_null=np.empty(n_perm))
     spec = _Spectrum(x, up, n_grid)
     burst = None        # high-frequency bursts against since_reversal (chatter.py)
-    if "since_reversal" in feats and t is not None:
+    if bursts and "since_reversal" in feats and t is not None:
         s_rev = np.asarray(feats["since_reversal"], dtype=float)
         b_s, nb_s = _bins(s_rev, n_bins, integer=False)
         sig = C.highpass(t, x, rc) if nb_s >= 2 else None
