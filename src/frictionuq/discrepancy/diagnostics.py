@@ -369,8 +369,14 @@ def diagnose(t, x, resid, spread=None, features=None, alpha: float = 0.01, n_per
     out_views = {name: _view_result(name, s, obs[name], T_null[name], acc[name], n_perm, ss, n)
                  for name, s in setup.items()}
     pvals = {name: v["p_value"] for name, v in out_views.items()}
+    bursts = None      # before the spectrum: its critical level is alpha / (the whole family)
+    if burst is not None:
+        bursts = C.result(burst["obs"], burst["null"], np.sqrt(np.quantile(burst["null_bins"], 0.95, axis=0)),
+                          burst["h"], burst["f_cut"], burst["b"], burst["nb"], s_rev, up)
+        pvals["chatter"] = bursts["p_value"]
     spectrum = None
     if spec.ok:
+        n_family = len(pvals) + 1
         mean_null = P_null.mean(0)
         ratio, null_max = P_obs / mean_null, (P_null / mean_null).max(1)
         i = int(np.argmax(ratio))
@@ -378,13 +384,8 @@ def diagnose(t, x, resid, spread=None, features=None, alpha: float = 0.01, n_per
         spectrum = {"wavelength_m": _f(1.0 / spec.k[i]), "peak_ratio": _f(ratio[i]),
                     "p_value": _f(pvals["spectrum"]), "grid_step_m": _f(spec.step),
                     "wavelength_band_m": [_f(1.0 / spec.k[-1]), _f(1.0 / spec.k[0])],
-                    "critical_ratio": _f(np.quantile(null_max, 1.0 - alpha / len(pvals))),
+                    "critical_ratio": _f(np.quantile(null_max, 1.0 - alpha / n_family)),
                     "wavenumber_per_m": _fl(spec.k), "power_ratio": _fl(ratio)}
-    bursts = None
-    if burst is not None:
-        bursts = C.result(burst["obs"], burst["null"], np.sqrt(np.quantile(burst["null_bins"], 0.95, axis=0)),
-                          burst["h"], burst["f_cut"], burst["b"], burst["nb"], s_rev, up)
-        pvals["chatter"] = bursts["p_value"]
     adj = _holm(pvals)
     for name, v in list(out_views.items()) + ([("spectrum", spectrum)] if spectrum else []) + \
             ([("chatter", bursts)] if bursts else []):
