@@ -1,28 +1,29 @@
 """High-frequency bursts in the residual: where along the travel since a reversal does the
 residual carry oscillation that the model, and the residual's own repeatable shape, do not?
 
-Stick-slip chatter (the real ARTS loops, BRFD paper section 5) is a fast oscillation of the force
-after the take-up whose phase changes from cycle to cycle. A deterministic model cannot follow
-it, and the residual views of frictionuq.discrepancy.diagnostics average it away (a bin mean of
-an oscillation with a random phase is about 0). What it leaves is *power*: the residual's
+Stick-slip chatter (the real ARTS loops; "chattering in the device" at the higher frequencies in
+both papers' model validations) is a fast oscillation of the force after the take-up whose phase
+changes from cycle to cycle. A deterministic model cannot follow it, and the residual views of
+frictionuq.discrepancy.diagnostics average it away (a bin mean of an oscillation with a random
+phase is about 0). What it leaves is *power*: the residual's
 high-frequency power is larger at some travels since the reversal than at others.
 
-The burst signal of a record, computed once:
+The burst signal of a record:
 
 1. the residual minus its per-direction means is high-passed (Butterworth, order 4, forward and
    backward) at HF_FACTOR x the drive frequency f_drive (the frequency below which 99 % of the
-   velocity power lies): the loop's own shape lives below it, chatter (10-40 Hz on 0.5-1 Hz
-   sines) above;
+   velocity power lies): the loop's own shape lives below it, chatter above (the measured force
+   of the ARTS 0.5-1 Hz sines has its largest power above 10 Hz at 10.5-15 Hz);
 2. its repeatable part is removed: the mean of the high-passed residual in each of LOCK_BINS
-   quantile bins of the travel since the reversal, per direction (`power`). A misfit that recurs at the
-   same travel after every reversal (a take-up corner one sample off) is the residual views'
-   business; what is left changes from cycle to cycle;
+   quantile bins of the travel since the reversal, per direction (`power`). A misfit that
+   recurs at the same travel after every reversal (a take-up corner one sample off) is the
+   residual views' business; what is left changes from cycle to cycle;
 3. h = its square, the local high-frequency power (N^2).
 
 The statistic is the partial correlation ratio of h over the since_reversal bins of the views
 (per direction, direction means removed, as diagnostics' T), and its null the same random-cut
-block permutations that the views use, applied to the high-passed residual before steps 2
-and 3: under the null (the residual a stationary
+block permutations that the views use, applied to the high-passed residual (step 1 runs once),
+with steps 2 and 3 repeated on each permuted copy: under the null (the residual a stationary
 short-memory process) the power does not depend on the travel since the reversal. Reported:
 the statistic and p-value (in the views' Holm family), the band, the bin of the largest power
 (its travel range and its rms against the record's), and the bin profile for the figure.
