@@ -88,8 +88,8 @@ def _rows(fit_id, source, applied, fc: dict, unit: str, geo, device) -> list[dic
         C_d = float(C_from_mu(mu_d, geo["drum_radius"], geo["damping_radius"], geo["wrap_deg"]))
     out = []
     for direction in ("fwd", "bwd"):
-        C = np.asarray(fc[direction], float) / applied
         f = np.asarray(fc[direction], float)
+        C = f / applied
         # draws pinned at the prior box (the law's draws are clipped to it): the share of draws
         # equal to the smallest or the largest value (continuous draws tie there only by chance;
         # a fixed parameter's draws are all equal and have no interval to flag)

@@ -5,8 +5,8 @@ Stick-slip chatter (the real ARTS loops; "chattering in the device" at the highe
 both papers' model validations) is a fast oscillation of the force after the take-up whose phase
 changes from cycle to cycle. A deterministic model cannot follow it, and the residual views of
 frictionuq.discrepancy.diagnostics average it away (a bin mean of an oscillation with a random
-phase is about 0). What it leaves is *power*: the residual's
-high-frequency power is larger at some travels since the reversal than at others.
+phase is about 0). What it leaves is *power*: the residual's high-frequency power is larger at
+some travels since the reversal than at others.
 
 The burst signal of a record:
 
@@ -99,8 +99,9 @@ def power(hp, cell, count) -> np.ndarray:
     return u * u
 
 
-def result(h_obs_stat, h_null, bins, h, f_cut, s_bin, n_bins_used, s_feature, up) -> dict:
-    """The JSON-ready part of diagnose's output for the bursts (before the Holm correction)."""
+def result(h_obs_stat, h_null, null_rms_q95, h, f_cut, s_bin, n_bins_used, s_feature, up) -> dict:
+    """The JSON-ready part of diagnose's output for the bursts (before the Holm correction);
+    null_rms_q95: per since_reversal bin, the 95 % quantile of the permuted copies' rms (N)."""
     n_perm = h_null.size
     with np.errstate(invalid="ignore", divide="ignore"):
         n_b = np.bincount(s_bin, minlength=n_bins_used).astype(float)
@@ -123,4 +124,4 @@ def result(h_obs_stat, h_null, bins, h, f_cut, s_bin, n_bins_used, s_feature, up
             "peak_since_reversal_m": [lo, hi], "peak_rms_n": float(np.sqrt(mean_b[k])),
             "peak_ratio": float(mean_b[k] / np.mean(h)) if np.mean(h) > 0 else None,
             "bins": {"centre": fl(centre), "rms": fl(np.sqrt(mean_b)), "count": [int(c) for c in n_b],
-                     **{k2: fl(v) for k2, v in per_dir.items()}, "null_rms_q95": fl(bins)}}
+                     **{k2: fl(v) for k2, v in per_dir.items()}, "null_rms_q95": fl(null_rms_q95)}}

@@ -3,7 +3,8 @@ friction d*(data - model) (N) +- 2 standard errors (from the block-permutation n
 that are significant after the Holm correction framed and titled in red, and a panel with the
 position-locked spectrum (power relative to its null mean against wavelength) and its critical
 level, and one with the high-frequency bursts (chatter.py: rms of the residual's unrepeated
-high-frequency part against the travel since the reversal, beside the null's 95 % per bin). Feature axes are in display units (mm, mm/s, s, kJ); forces in N.
+high-frequency part against the travel since the reversal, beside the null's 95 % per bin).
+Feature axes are in display units (mm, mm/s, s, kJ); forces in N.
 """
 from __future__ import annotations
 
