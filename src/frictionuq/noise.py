@@ -73,6 +73,38 @@ def reversal_indices(x, eps):
     return out[:n]
 
 
+def initial_direction(x: np.ndarray) -> float:
+    """The spec's initial d: sign of the first nonzero x[j] - x[0] (+1 if none)."""
+    moved = np.flatnonzero(x != x[0])
+    return 1.0 if moved.size == 0 or x[moved[0]] > x[0] else -1.0
+
+
+def reversal_state(x, eps: float = 0.0):
+    """(direction d, reversal point x_r, number of reversals so far) at every sample, as the
+    kernel's detector (spec section 4) sees them with dead-band eps."""
+    x = np.ascontiguousarray(np.asarray(x, dtype=float))
+    rev = reversal_indices(x, float(eps))
+    k = np.arange(x.size)
+    n_rev = np.searchsorted(rev, k, side="right")          # reversals at or before sample k
+    d = initial_direction(x) * np.where(n_rev % 2 == 0, 1.0, -1.0)
+    x_r = np.concatenate(([x[0]], x[rev - 1]))[n_rev]
+    return d, x_r, n_rev
+
+
+def since_reversal(x, eps: float = 0.0) -> np.ndarray:
+    """Travel since the last reversal (m) at every sample, the spec's s (>= 0)."""
+    d, x_r, _ = reversal_state(x, eps)
+    return np.maximum(0.0, d * (np.asarray(x, dtype=float) - x_r))
+
+
+def chatter_gain(s, a, s0, w) -> np.ndarray:
+    """The `chatter` noise effect's sd multiplier g(s) = sqrt(1 + a exp(-(s - s0)^2 / (2 w^2)))
+    for rows of parameters a, s0, w (W,) at travels s (N,): (W, N)."""
+    a, s0, w = (np.asarray(v, dtype=float).reshape(-1, 1) for v in (a, s0, w))
+    z = (np.asarray(s, dtype=float)[None, :] - s0) / w
+    return np.sqrt(1.0 + a * np.exp(-0.5 * z * z))
+
+
 def count_reversals(x, eps) -> int:
     """Number of reversals the kernel's detector sees in x with dead-band eps."""
     return int(reversal_indices(np.asarray(x, dtype=float), float(eps)).size)

@@ -94,16 +94,30 @@ _EFFECT_PARAMS = [
           "speed_weakening", default=5e-2, log_scale=True),
 ]
 
+#: effects on the measurement noise, not on the force (the kernel never sees them): the
+#: likelihood scales the noise by g(s) = sqrt(1 + a_ch exp(-(s - s_ch)^2 / (2 w_ch^2))) at the
+#: travel s since the last reversal (infer.likelihood; docs/model-choices.md, "chatter")
+_NOISE_EFFECT_PARAMS = [
+    Param("a_ch", "1", 0.0, 1e4, "extra measurement-noise variance at the centre of the chatter "
+          "window, relative to the noise variance elsewhere (the variance there is 1 + a_ch times)",
+          "noise_effect", "chatter", neutral=0.0, default=0.0),
+    Param("s_ch", "m", 0.0, 10.0, "travel since the reversal at the centre of the chatter window",
+          "noise_effect", "chatter", default=1e-2),
+    Param("w_ch", "m", 1e-6, 10.0, "half-width (sd) of the chatter window, in travel",
+          "noise_effect", "chatter", default=3e-3, log_scale=True),
+]
+
 BASE_NAMES: tuple[str, ...] = tuple(p.name for p in _BASE)
 LIKELIHOOD_NAMES: tuple[str, ...] = tuple(p.name for p in _LIKELIHOOD)
 EFFECT_PARAM_NAMES: tuple[str, ...] = tuple(p.name for p in _EFFECT_PARAMS)
 VECTOR_NAMES: tuple[str, ...] = BASE_NAMES + EFFECT_PARAM_NAMES
-PARAMS: dict[str, Param] = {p.name: p for p in _BASE + _LIKELIHOOD + _EFFECT_PARAMS}
+PARAMS: dict[str, Param] = {p.name: p for p in _BASE + _LIKELIHOOD + _EFFECT_PARAMS
+                                + _NOISE_EFFECT_PARAMS}
 INDEX: dict[str, int] = {n: i for i, n in enumerate(VECTOR_NAMES)}
 
 #: effect name -> its parameter names, in vector order
 EFFECTS: dict[str, tuple[str, ...]] = {}
-for _p in _EFFECT_PARAMS:
+for _p in _EFFECT_PARAMS + _NOISE_EFFECT_PARAMS:
     EFFECTS.setdefault(_p.effect, ())
     EFFECTS[_p.effect] = EFFECTS[_p.effect] + (_p.name,)
 
@@ -113,7 +127,9 @@ NEEDS_APPLIED = frozenset({"applied_tracking"})
 #: asked for (takeup_overshoot mimics a reversal_hump on decimated BRFD records; speed_weakening
 #: passes the in-sample stage on every real ARTS level through the AR(1) likelihood's preference
 #: for a smooth residual, not through the data's level: docs/log-discrepancy.md, 2026-11-26)
-BEYOND_SPEC = frozenset({"takeup_overshoot", "speed_weakening"})
+BEYOND_SPEC = frozenset({"takeup_overshoot", "speed_weakening", "chatter"})
+#: effects on the measurement noise only (the force model is unchanged)
+NOISE_EFFECTS = frozenset(_p.effect for _p in _NOISE_EFFECT_PARAMS)
 #: effects that only make sense with the backlash stages
 NEEDS_BACKLASH = frozenset({"stage2_nonlinear", "takeup_overshoot"})
 
@@ -166,8 +182,9 @@ def pack(params: Mapping[str, float], effects: Mapping[str, Mapping[str, float]]
          model: str = "three_stage") -> np.ndarray:
     """Named parameters (+ effects) -> the kernel's float64 vector (len(VECTOR_NAMES)).
 
-    `params` must hold every base name; likelihood-only names (`sigma_noise`, `force_offset`)
-    are accepted and ignored; anything else is refused.
+    `params` must hold every base name; likelihood-only names (`sigma_noise`, `force_offset`,
+    the noise effects' parameters) are accepted and ignored; anything else is refused. A noise
+    effect in `effects` is validated and does not change the vector.
     """
     vec = np.empty(len(VECTOR_NAMES))
     for name in params:
@@ -183,7 +200,8 @@ def pack(params: Mapping[str, float], effects: Mapping[str, Mapping[str, float]]
     vec[len(BASE_NAMES):] = neutral_vector()
     for eff, values in check_effects(effects, model).items():
         for name, v in values.items():
-            vec[INDEX[name]] = v
+            if name in INDEX:           # noise effects' parameters are not the kernel's
+                vec[INDEX[name]] = v
     return vec
 
 

@@ -15,7 +15,9 @@ Given a fit output folder (`frictionuq fit`, see frictionuq.infer.fit) and an ap
   correlation at the prediction's median step dt is phi ** (dt * rate_hz), the marginal sd
   unchanged. A fit with ARMA(1,1) noise (likelihood `arma`, MA coefficient noise_theta per
   test in fit.json) is read as AR(1) plus white noise (noisemodel.split_ar1_white): the AR(1)
-  part is converted as above, the white part keeps its sd.
+  part is converted as above, the white part keeps its sd. A fit with the `chatter` noise effect
+  (more noise in a window after each reversal) scales each draw's noise by its g(s) at the
+  input's travel since the last reversal (noise.chatter_gain): the bands widen there.
 * force_offset is a load-cell artefact, not damper force: it is never in the noise-free
   ("_model") bands, and in the noisy bands only with include_offset=True (default False: the
   noisy bands then describe what a zeroed load cell would read).
@@ -163,7 +165,8 @@ def kernel_matrix(params: dict[str, np.ndarray], model: str, effects) -> np.ndar
     M[:, len(P.BASE_NAMES):] = P.neutral_vector()
     for eff in effects:
         for n in P.EFFECTS[eff]:
-            M[:, P.INDEX[n]] = P.PARAMS[n].default
+            if n in P.INDEX:         # a noise effect's parameters are not the kernel's
+                M[:, P.INDEX[n]] = P.PARAMS[n].default
     for n in P.BASE_NAMES:
         if n not in params:
             if model == "lugre" and n in _LUGRE_UNUSED:
@@ -212,9 +215,20 @@ def simulate_draws(t, x, draws: Draws, eps: float, applied_signal=None) -> np.nd
         raise InputError(f"cannot simulate the parameter draws ({draws.source}): {e}") from None
 
 
-def add_noise(F: np.ndarray, draws: Draws, dt: float, rng, include_offset: bool = False) -> np.ndarray:
+def noise_gain(x, draws: Draws, eps: float) -> np.ndarray | None:
+    """(S, N) sd multiplier of each draw's noise along x under the `chatter` noise effect
+    (noise.chatter_gain at the travel since the last reversal), None without it."""
+    if "chatter" not in draws.effects:
+        return None
+    from .noise import chatter_gain, since_reversal
+    p = {n: draws.params.get(n, np.full(draws.size, P.PARAMS[n].default)) for n in ("a_ch", "s_ch", "w_ch")}
+    return chatter_gain(since_reversal(np.asarray(x, float), float(eps)), p["a_ch"], p["s_ch"], p["w_ch"])
+
+
+def add_noise(F: np.ndarray, draws: Draws, dt: float, rng, include_offset: bool = False,
+              gain: np.ndarray | None = None) -> np.ndarray:
     """F plus stationary AR(1) (+ white, for `arma` fits) measurement noise of each draw at step
-    dt (module docstring)."""
+    dt (module docstring), times `gain` (S, N; the `chatter` noise effect's noise_gain) if given."""
     from .infer.noisemodel import noise_paths, split_ar1_white
     phi_fit = np.clip(draws.phi, 0.0, 0.999)
     theta = np.zeros_like(phi_fit) if draws.theta is None else np.asarray(draws.theta, float)
@@ -223,7 +237,8 @@ def add_noise(F: np.ndarray, draws: Draws, dt: float, rng, include_offset: bool 
     out = np.array(F, dtype=float)
     for i in range(0, F.shape[0], _NOISE_CHUNK):          # bounded temporary memory
         j = min(i + _NOISE_CHUNK, F.shape[0])
-        out[i:j] += noise_paths(sd_ar[i:j], phi[i:j], sd_white[i:j], F.shape[1], rng)
+        e = noise_paths(sd_ar[i:j], phi[i:j], sd_white[i:j], F.shape[1], rng)
+        out[i:j] += e if gain is None else gain[i:j] * e
     if include_offset:
         out += draws.offset[:, None]
     return out
@@ -299,7 +314,8 @@ def predict(fit_dir, applied_si: float, t, x, *, eps: float = 0.0, n_draws: int 
     draws = choose_draws(fit_dir, applied_si, int(n_draws), rng, summary)
     from .infer.likelihood import lowpass_drive
     Fm = simulate_draws(t, lowpass_drive(t, x, drive_lowpass)[0], draws, eps, applied_signal)
-    Fn = add_noise(Fm, draws, float(np.median(np.diff(t))), rng, include_offset)
+    Fn = add_noise(Fm, draws, float(np.median(np.diff(t))), rng, include_offset,
+                   gain=noise_gain(x, draws, eps))
     bounds = cycle_bounds(x, eps, samples_per_cycle)
     return Prediction(band_table(t, x, Fn, Fm), cycle_table(t, x, Fm, bounds), draws, eps, Fm)
 

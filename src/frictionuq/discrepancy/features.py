@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..noise import reversal_indices
+from ..noise import reversal_state
 
 FEATURE_UNITS: dict[str, str] = {
     "displacement": "m",
@@ -38,24 +38,6 @@ FEATURE_UNITS: dict[str, str] = {
     "applied": "N",
     "direction": "1",
 }
-
-
-def _initial_direction(x: np.ndarray) -> float:
-    """The spec's initial d: sign of the first nonzero x[j] - x[0] (+1 if none)."""
-    moved = np.flatnonzero(x != x[0])
-    return 1.0 if moved.size == 0 or x[moved[0]] > x[0] else -1.0
-
-
-def reversal_state(x, eps: float = 0.0):
-    """(direction d, reversal point x_r, number of reversals so far) at every sample, as the
-    kernel's detector (spec section 4) sees them with dead-band eps."""
-    x = np.ascontiguousarray(np.asarray(x, dtype=float))
-    rev = reversal_indices(x, float(eps))
-    k = np.arange(x.size)
-    n_rev = np.searchsorted(rev, k, side="right")          # reversals at or before sample k
-    d = _initial_direction(x) * np.where(n_rev % 2 == 0, 1.0, -1.0)
-    x_r = np.concatenate(([x[0]], x[rev - 1]))[n_rev]
-    return d, x_r, n_rev
 
 
 def dissipated_energy(x, force) -> np.ndarray:

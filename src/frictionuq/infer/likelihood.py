@@ -5,9 +5,13 @@ data = simulated force + force_offset + noise, with noise either independent Gau
 (`iid`, sd sigma_noise), a stationary AR(1) process (`ar1`, marginal sd sigma_noise, lag-1
 correlation noise_phi) or ARMA(1,1) (`arma`: AR(1) plus white noise, the record's MA
 coefficient noise_theta fixed at the MAP), per record, with sigma_noise and noise_phi integrated
-out (frictionuq.infer.noisemodel). Residuals of a friction model on a 100-1000 Hz record are strongly
-autocorrelated; the iid form then treats thousands of dependent samples as independent and makes
-posteriors far too narrow, which is why `ar1` is the default.
+out (frictionuq.infer.noisemodel). With the `chatter` noise effect (not in the spec's library)
+the noise is g(s) times such a process, g(s) = sqrt(1 + a_ch exp(-(s - s_ch)^2 / (2 w_ch^2)))
+at the travel s since the last reversal: more noise in a window after each reversal, where the
+real ARTS loops carry stick-slip chatter; sigma_noise is then the noise's sd outside the window.
+Residuals of a friction model on a 100-1000 Hz record are strongly autocorrelated; the iid
+form then treats thousands of dependent samples as independent and makes posteriors far too
+narrow, which is why `ar1` is the default.
 
 Decimation (infer.decimate). Long records are filtered and downsampled (scipy.signal.resample_poly:
 a zero-phase Kaiser-windowed FIR anti-alias filter) so that the excitation is still resolved: the kept rate
@@ -32,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import model as M
-from ..noise import default_eps
+from ..noise import chatter_gain, default_eps, since_reversal
 from . import drivefilter, noisemodel
 from .decimate import decimate, decimator
 from .space import Space
@@ -186,6 +190,20 @@ class LogPosterior:
         self.parallel = parallel
         self.noise = space.noise_config()
         self.n_evals = 0
+        self._since: dict[int, np.ndarray] = {}
+
+    def since(self, j: int) -> np.ndarray:
+        """Travel since the last reversal (m) at record j's compared samples."""
+        if j not in self._since:
+            rec = self.records[j]
+            self._since[j] = since_reversal(rec.x, rec.eps)[: rec.n]
+        return self._since[j]
+
+    def noise_gain(self, theta, j: int) -> np.ndarray | None:
+        """(W, N) sd multiplier of record j's noise under the `chatter` noise effect
+        (noise.chatter_gain at the travel since the reversal), or None without it."""
+        ch = self.space.chatter(theta)
+        return None if ch is None else chatter_gain(self.since(j), *ch)
 
     def simulate(self, theta, rec: FitRecord) -> np.ndarray:
         """Simulated force (W, N) at the record's kept samples (filtered and decimated like the
@@ -211,9 +229,15 @@ class LogPosterior:
         out = np.empty((theta.shape[0], len(self.records)))
         stats = np.empty((theta.shape[0], len(self.records), N_STATS))
         for j, rec in enumerate(self.records):
-            e = noisemodel.prefilter(self.residuals(theta, rec, off), rec.noise_theta)
+            e = self.residuals(theta, rec, off)
+            g = self.noise_gain(theta, j)
+            if g is not None:      # e = g u, u the stationary noise: p(e) = p(u) / prod g
+                e = e / g
+            e = noisemodel.prefilter(e, rec.noise_theta)
             st = noisemodel.suff_stats(e)
             out[:, j] = noisemodel.log_marginal_stats(st, rec.n, **self.noise)
+            if g is not None:
+                out[:, j] -= np.log(g).sum(axis=1)
             stats[:, j, :] = np.column_stack(st)
         self.n_evals += theta.shape[0]
         return out, stats

@@ -31,6 +31,7 @@ from scipy.optimize import differential_evolution, least_squares, minimize
 
 from . import noisemodel
 from .likelihood import LogPosterior
+from .noisefit import fit_noise, noise_block_hessian, noise_indices, scaled_residuals
 from .priors import RecordScales
 
 
@@ -61,7 +62,7 @@ def heuristic_values(space, records, scales: RecordScales) -> dict[str, float]:
     vals["k2"] = 0.3 * F / vals["d2"]
     vals["k3"] = 0.5 * F / vals["d3"]
     for eff_param in ("p2", "kappa", "e_fade", "a_hump", "l_hump", "eps_ecc", "l_ecc", "psi_ecc",
-                      "beta_rate", "v_ref", "beta_app"):
+                      "beta_rate", "v_ref", "beta_app", "a_ch"):
         p = space.priors.get(eff_param)
         if p is not None:   # start effects near off (neutral) when the prior allows it
             from .. import params as P
@@ -97,10 +98,11 @@ def _clip_in(space, th):
 
 
 def whitening(logpost: LogPosterior, theta: np.ndarray) -> list[tuple[float, float]]:
-    """Per record (lag-1 correlation phi, innovation sd) of the residuals at theta."""
+    """Per record (lag-1 correlation phi, innovation sd) of the residuals at theta (scaled by a
+    noise effect's gain there)."""
     out = []
-    for rec in logpost.records:
-        e = logpost.residuals(theta[None, :], rec)[0]
+    for j, rec in enumerate(logpost.records):
+        e = scaled_residuals(logpost, theta, j)[0]
         phi = float(np.clip(np.corrcoef(e[1:], e[:-1])[0, 1], 0.0, 0.995)) if e.size > 3 else 0.0
         s = float(np.std(e[1:] - phi * e[:-1])) or 1.0
         out.append((phi if np.isfinite(phi) else 0.0, s if np.isfinite(s) else 1.0))
@@ -111,14 +113,17 @@ def least_squares_fit(logpost: LogPosterior, theta0: np.ndarray, max_nfev: int =
     """Least squares over all sampled parameters (model and offset) from theta0; with `white`
     (per record (phi, innovation sd), from `whitening`) on the AR(1)-whitened residuals, each
     record scaled by its own noise: iterated, this maximises the likelihood with per-record
-    AR(1) noise (the raw least squares lets the records with the largest misfit dominate)."""
+    AR(1) noise (the raw least squares lets the records with the largest misfit dominate).
+    With a noise effect (chatter) the residuals are divided by its gain at theta0, held fixed:
+    least squares cannot fit a noise parameter (fit_noise does), only weigh by it."""
     sp = logpost.space
+    th_gain = np.asarray(theta0, float)
 
     def resid_batch(th):
         th = np.atleast_2d(th)
         parts = []
         for j, rec in enumerate(logpost.records):
-            e = logpost.residuals(th, rec)
+            e = scaled_residuals(logpost, th, j, gain_at=th_gain)
             if white is not None:     # AR(1)-whitened and scaled by the innovation sd
                 phi, s = white[j]
                 e = np.concatenate([e[:, :1] * np.sqrt(1 - phi**2), e[:, 1:] - phi * e[:, :-1]],
@@ -235,6 +240,9 @@ def find_map(logpost: LogPosterior, scales: RecordScales, rng: np.random.Generat
     else:
         best, best_lp, info = _multi_start(logpost, scales, rng, n_random, n_prior, n_draws, log,
                                            n_global)
+    if noise_indices(sp):        # a noise effect: its parameters and the weighted fit, in turn
+        best, best_lp = alternate_noise(logpost, best, best_lp)
+        log(f"noise effect fitted in turn with the model (log-posterior {best_lp:.6g})")
     th_map, lp_map = polish(logpost, best, best_lp)
     if sp.likelihood == "arma":      # the records' MA coefficients at the MAP, then re-polished
         for rnd in range(2):
@@ -334,18 +342,45 @@ def set_noise_shape(logpost: LogPosterior, theta: np.ndarray) -> list[float]:
     return out
 
 
+def alternate_noise(logpost: LogPosterior, theta: np.ndarray, lp: float | None = None,
+                    rounds: int = 2) -> tuple[np.ndarray, float]:
+    """(theta, log-posterior) after fit_noise and whitened least squares weighted by the new
+    gain, in turn, `rounds` times; a step is kept only if it raises the log-posterior."""
+    best = np.asarray(theta, float)
+    best_lp = float(logpost.log_prob(best[None, :])[0]) if lp is None else lp
+    for _ in range(rounds):
+        for step in ("noise", "model"):
+            if step == "noise":
+                th = fit_noise(logpost, best)
+            else:
+                th, _ = least_squares_fit(logpost, best, max_nfev=40, white=whitening(logpost, best))
+            v = float(logpost.log_prob(th[None, :])[0])
+            if v > best_lp:
+                best, best_lp = th, v
+    return best, best_lp
+
+
 def gauss_newton_cov(logpost: LogPosterior, theta: np.ndarray) -> np.ndarray:
     """Approximate posterior covariance at theta: Gauss-Newton with each record weighted by its
     residual variance, inflated by (1 + phi)/(1 - phi) for its lag-1 correlation phi, plus the
-    prior box as a weak regulariser."""
+    prior box as a weak regulariser. With a noise effect (chatter) the residuals are divided by
+    its gain at theta, and its parameters' block is the finite-difference curvature of the
+    log-posterior over them (noisefit.noise_block_hessian), their cross terms with the model
+    parameters left at 0 (least squares has no curvature along a parameter that only scales the
+    noise)."""
     sp = logpost.space
     D = sp.ndim
     h = np.where(theta + 1e-6 * (sp.hi - sp.lo) <= sp.hi, 1e-6, -1e-6) * (sp.hi - sp.lo)
     pts = np.repeat(theta[None, :], D + 1, axis=0)
     pts[1:] += np.diag(h)
     H = np.diag(1.0 / (0.25 * (sp.hi - sp.lo)) ** 2)
-    for rec in logpost.records:
-        R = logpost.residuals(pts, rec)
+    idx = noise_indices(sp)
+    if idx:
+        Hn = noise_block_hessian(logpost, theta, idx)
+        if np.all(np.isfinite(Hn)):
+            H[np.ix_(idx, idx)] += Hn
+    for j, rec in enumerate(logpost.records):
+        R = scaled_residuals(logpost, pts, j, gain_at=theta)
         e = R[0]
         var = float(np.mean(e**2)) or 1e-300
         phi = float(np.clip(np.corrcoef(e[1:], e[:-1])[0, 1], 0.0, 0.99)) if e.size > 3 else 0.0

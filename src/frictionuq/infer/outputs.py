@@ -65,7 +65,9 @@ def predictive(logpost, post, n_draws: int, rng) -> dict:
     for j, rec in enumerate(logpost.records):
         F = logpost.simulate(sel, rec) + off[:, None]
         model.append(F)
-        rep.append(F + ar1_noise(sig[:, j], phi[:, j], rec.n, rng, rec.noise_theta))
+        noise = ar1_noise(sig[:, j], phi[:, j], rec.n, rng, rec.noise_theta)
+        g = logpost.noise_gain(sel, j)      # the `chatter` noise effect, if the fit has it
+        rep.append(F + (noise if g is None else g * noise))
     return {"index": idx, "model": model, "rep": rep}
 
 

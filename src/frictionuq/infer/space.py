@@ -62,7 +62,7 @@ class Space:
                 tmpl[P.INDEX[n]] = v
         for eff in self.effects:
             for n in P.EFFECTS[eff]:
-                if n not in self.priors and n not in self.fixed:
+                if n not in self.priors and n not in self.fixed and n in P.INDEX:
                     tmpl[P.INDEX[n]] = P.PARAMS[n].default
         self._template = tmpl
         self._kernel_cols = [(i, P.INDEX[n]) for i, n in enumerate(self.names) if n in P.INDEX]
@@ -117,6 +117,16 @@ class Space:
         if "force_offset" in self.priors:
             return vals[:, self.names.index("force_offset")]
         return np.full(vals.shape[0], self.fixed.get("force_offset", 0.0))
+
+    def chatter(self, theta) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """(a_ch, s_ch, w_ch) of each row (W,) when the fit has the `chatter` noise effect,
+        else None (params: the noise effects)."""
+        if "chatter" not in self.effects:
+            return None
+        named = self.named(theta)
+        return tuple(np.asarray(named[n] if n in named else np.full(len(named[self.names[0]]),
+                                                                      P.PARAMS[n].default), float)
+                     for n in ("a_ch", "s_ch", "w_ch"))
 
     def noise_config(self) -> dict:
         """Arguments of noisemodel.log_marginal / draw_noise: kind, bounds, fixed values."""
