@@ -292,7 +292,8 @@ def test_chatter_skipped_where_the_band_does_not_fit_or_when_asked():
 
 def test_report_says_chatter_only_where_the_baseline_shows_it(tmp_path):
     """The discrepancy report's gap blocks name the tests whose baseline residuals carry
-    significant bursts, and say that no library effect closes them; without such a test (or
+    significant bursts, say that no deterministic library effect closes them and point to the
+    noise effect chatter; without such a test (or
     with bursts only under the new model) they say nothing about chatter. Deterministic."""
     from frictionuq.report.sections.discrepancy import gap_blocks
     label = "chatter (bursts > 9.6 Hz, strongest 7.7-11 mm after the reversal, 1.38e+03 N rms)"
@@ -304,6 +305,6 @@ def test_report_says_chatter_only_where_the_baseline_shows_it(tmp_path):
               "significant_views": [label]}]
     text = " ".join(b.get("text", "") for b in gap_blocks(tmp_path, {"diagnostics": diags}))
     assert "significant in sine-1Hz:" in text and "sine-0.5Hz" not in text.split("significant in")[1]
-    assert "No effect of the library can close" in text
+    assert "No deterministic effect of the library can close" in text and "--effect chatter" in text
     quiet = " ".join(b.get("text", "") for b in gap_blocks(tmp_path, {"diagnostics": diags[1:]}))
     assert "chatter" not in quiet

@@ -96,23 +96,25 @@ def test_candidates_are_the_spec_library_unless_asked(tmp_path):
 def test_hidden_draws_keep_the_random_stream():
     """draw_effect takes the same 14 uniform draws whatever the effect (the table of the spec's
     library and takeup_overshoot), so the noise drawn after it is the same for every effect of a
-    seed; speed_weakening, added later, draws its 2 only when it is the hidden one. Why: drawn
+    seed; speed_weakening and chatter, added later, draw their 2 and 3 only when hidden. Why: drawn
     inside the table, it moved every campaign's noise by two draws, and the CI's stage2_nonlinear
     case (a favourable draw) and the Monte Carlo check of test_discrepancy_predictive failed on
     the new noise (2026-11-26). Deterministic."""
     from frictionuq.discrepancy.hidden import draw_effect
     nxt = {}
     for eff in (None, "stage2_nonlinear", "thermal_fade", "reversal_hump", "eccentricity",
-                "rate_strengthening", "applied_tracking", "takeup_overshoot", "speed_weakening"):
+                "rate_strengthening", "applied_tracking", "takeup_overshoot", "speed_weakening",
+                "chatter"):
         rng = np.random.default_rng(5)
         draw_effect(eff, rng, 0.02, 0.1, 1e3)
         nxt[eff] = rng.random()
     ref = np.random.default_rng(5)
     ref.uniform(size=14)
-    assert {v for e, v in nxt.items() if e != "speed_weakening"} == {ref.random()}
-    ref = np.random.default_rng(5)
-    ref.uniform(size=16)
-    assert nxt["speed_weakening"] == ref.random()
+    assert {v for e, v in nxt.items() if e not in ("speed_weakening", "chatter")} == {ref.random()}
+    for eff, k in (("speed_weakening", 2), ("chatter", 3)):    # drawn only when hidden
+        ref = np.random.default_rng(5)
+        ref.uniform(size=14 + k)
+        assert nxt[eff] == ref.random()
 
 
 def test_hidden_campaign_keeps_its_answer_out(tmp_path):

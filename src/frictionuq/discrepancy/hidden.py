@@ -18,7 +18,8 @@ import numpy as np
 
 from .. import atomic, published as pub
 from ..model import simulate
-from ..noise import ar1_from_normals
+from ..noise import ar1_from_normals, chatter_gain, since_reversal
+from ..params import NOISE_EFFECTS
 from ..twins import earthquake_drive, harmonic_drive
 
 LEVEL = {"brfd": 133.0, "mfd": 1200.0}          # applied force (N) / pressure (psi)
@@ -86,6 +87,11 @@ _ALWAYS_DRAWN = {
 _DRAWN_WHEN_HIDDEN = {
     "speed_weakening": lambda u, amp, v_max, energy: {"beta_sw": float(u(0.2, 0.35)),
                                                       "v_sw": float(u(0.3, 0.6) * v_max)},
+    # a noise effect: the noise sd up to 2.2-4.6 times in a window after each reversal (the real
+    # ARTS loops: a_ch about 29 at 35 lb, s_ch 13 mm of a 25 mm amplitude, w_ch 3.3 mm)
+    "chatter": lambda u, amp, v_max, energy: {"a_ch": float(u(4.0, 20.0)),
+                                              "s_ch": float(u(0.3, 0.8) * amp),
+                                              "w_ch": float(u(0.08, 0.15) * amp)},
 }
 
 
@@ -156,7 +162,11 @@ def hidden_campaign(out_dir, device: str, effect: str | None, seed: int,
         actual, measured = applied_signals(t, a_si, rng)
         F = simulate(t, x, p, effects=effects, eps=0.0,
                      applied=actual if effect == "applied_tracking" else None)
-        y = F + ar1_from_normals(rng.standard_normal(n), NOISE_PHI, sd)
+        noise = ar1_from_normals(rng.standard_normal(n), NOISE_PHI, sd)
+        if effect in NOISE_EFFECTS:      # chatter: more noise in a window after each reversal
+            noise = noise * chatter_gain(since_reversal(x), eff_p["a_ch"], eff_p["s_ch"],
+                                         eff_p["w_ch"])[0]
+        y = F + noise
         a_out = measured if unit_applied == "N" else measured / 6894.757293168
         body = "time,displacement,force,applied\n" + "".join(
             f"{a:.6f},{b:.9g},{c:.6f},{d:.6f}\n" for a, b, c, d in zip(t, x, y, a_out))

@@ -59,9 +59,11 @@ def gap_blocks(folder, d: dict) -> list[dict]:
             f"High-frequency bursts after the reversals (stick-slip chatter) are significant in "
             f"{', '.join(chat)}: the residual above the band shown carries more power at some "
             "travels since the reversal than at others, and not as a shape repeated every cycle "
-            "(that part is removed before the test). No effect of the library can close this "
-            "part of the gap: a deterministic model cannot follow an oscillation whose phase "
-            "changes from cycle to cycle."))
+            "(that part is removed before the test). No deterministic effect of the library can "
+            "close this part of the gap: a force model cannot follow an oscillation whose phase "
+            "changes from cycle to cycle. The noise effect chatter describes it as more "
+            "measurement noise in a window after each reversal, so that the bands widen there "
+            "(frictionuq fit --effect chatter; discover screens it with --extra-effect chatter)."))
     seen = set()
     for g in diags:
         name = g.get("loop_figure")
