@@ -176,9 +176,9 @@ EFFECT_PRIORS = {
     # Stribeck term's, v_s <= 0.3 v_max) to three times it (beyond, only beta_sw/v_sw is seen)
     "speed_weakening": lambda s: [_u("beta_sw", 0.0, 0.6),
                                   _lu("v_sw", 0.1 * max(s.v_max, 1e-9), 3.0 * max(s.v_max, 1e-9))],
-    # a noise effect: the noise variance up to 1 + 100 times in a window anywhere along the
+    # a noise effect: the noise variance up to 1 + 400 times (sd 20 times) in a window along the
     # half-cycle (travel since the reversal 0 to 2 amplitudes), 0.02-0.5 amplitude wide
-    "chatter": lambda s: [_u("a_ch", 0.0, 100.0), _u("s_ch", 0.0, 2.0 * s.amp),
+    "chatter": lambda s: [_u("a_ch", 0.0, 400.0), _u("s_ch", 0.0, 2.0 * s.amp),
                           _lu("w_ch", 0.02 * s.amp, 0.5 * s.amp)],
 }
 
