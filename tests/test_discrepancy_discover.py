@@ -94,6 +94,7 @@ def test_discover_names_the_hidden_effect_or_none(tmp_path, device, effect, seed
         assert ratios["baseline"] > 3.0 and 0.6 < ratios[effect] < 1.5, ratios
         assert all(g["diagnostics"]["scaled_by_noise_gain"] for g in doc["diagnostics"]
                    if g["model"] == f"with {effect}")
+        assert f"{effect} is a noise effect" in render_discrepancy_page(tmp_path / "out").read_text()
     elif effect:
         assert doc["rmse_after"] < doc["rmse_before"]
         # the gap shrinks per test too (as in the decision rule, an effect may leave no trace in

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 
 from .. import blocks as B
+from ...params import NOISE_EFFECTS
 from ..tables import num, table
 
 
@@ -22,6 +23,14 @@ def build(ctx, folder=None) -> list[dict]:
            B.para(f"RMSE before (baseline 3-stage, at its MAP): {num(d['rmse_before'])} N; after: "
                   f"{num(d['rmse_after'])} N"
                   + (f"; estimated noise scale {num(d['noise_scale'])} N." if d.get("noise_scale") else "."))]
+    if d["named_effect"] in NOISE_EFFECTS:
+        out.append(B.para(
+            f"{d['named_effect']} is a noise effect: it changes the measurement noise (more of it in "
+            "a window after each reversal), not the force, so the loops and the RMSE barely move "
+            "and the noise scale is the rms of the fitted noise sd over the records. The gap it "
+            "closes is in the held-out log-likelihood (the candidates' table) and in the bands, "
+            "which widen in the window; the residual diagnostics of the model with it use the "
+            "residual divided by its noise gain."))
     rows = [(c["effect"], "not scored (MAP gain too small)" if c.get("screened_out") else num(c["elpd_gain"]),
              num(c["elpd_gain_se"]), ", ".join(num(g) for g in c["gain_per_unit"]) or num(None),
              num(c["map_gain"]) if "map_gain" in c else "-", num(c["rmse_after"]), c["n_params"])
