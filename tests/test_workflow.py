@@ -72,7 +72,7 @@ def test_defaults_are_filled_in(tmp_path):
     ("\n[discrepancy]\nenabled = 1\n", "[discrepancy].enabled", "true or false"),
     ("\n[discrepancy]\ncandidates = []\n", "discrepancy.candidates", "unknown key"),
     ("\n[discrepancy]\nextra_effects = [\"eccentricity\"]\n", "[discrepancy].extra_effects",
-     "not one of speed_weakening, takeup_overshoot"),
+     "not one of chatter, speed_weakening, takeup_overshoot"),
 ])
 def test_bad_keys_and_values_name_file_key_and_problem(tmp_path, extra, where, problem):
     p = _write(tmp_path, extra)

@@ -221,8 +221,9 @@ def noise_gain(x, draws: Draws, eps: float) -> np.ndarray | None:
     if "chatter" not in draws.effects:
         return None
     from .noise import chatter_gain, since_reversal
-    p = {n: draws.params.get(n, np.full(draws.size, P.PARAMS[n].default)) for n in ("a_ch", "s_ch", "w_ch")}
-    return chatter_gain(since_reversal(np.asarray(x, float), float(eps)), p["a_ch"], p["s_ch"], p["w_ch"])
+    a, s0, w = (np.broadcast_to(np.asarray(draws.params.get(n, P.PARAMS[n].default), float), (draws.size,))
+                for n in ("a_ch", "s_ch", "w_ch"))
+    return chatter_gain(since_reversal(np.asarray(x, float), float(eps)), a, s0, w)
 
 
 def add_noise(F: np.ndarray, draws: Draws, dt: float, rng, include_offset: bool = False,

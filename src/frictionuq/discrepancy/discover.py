@@ -21,8 +21,8 @@ posterior-median prediction. noise_scale is the marginal sd of the measurement n
 (or, with "none", the baseline) estimates: sigma_noise (a marginal sd), median over the tests;
 with a noise effect (chatter) each test's sigma_noise times the rms of its gain g over the test,
 i.e. the rms of the fitted noise sd. Such an effect does not change the force, so it closes no
-RMSE; the gap it closes shows in the held-out score and in the diagnostics of the residual in
-units of its noise model (divided by g), where its bursts no longer stand out.
+RMSE; the gap it closes shows in the held-out score and in the bands; its diagnostics are
+those of the residual in units of its noise model (divided by g).
 """
 from __future__ import annotations
 
@@ -107,8 +107,8 @@ def _gap(level_tests, cfg, level: dict, named: str, seed: int, fig_dir: Path, lo
                          seed=seed, bursts=rec.kind != "earthquake")   # chatter.py: why
             d["scaled_by_noise_gain"] = g is not None
             name = f"residuals-{tag.replace(' ', '-')}-{rec.id}.png"
-            atomic.write_bytes(fig_dir / name, residual_figure(
-                d, None, title=f"{rec.id}: residuals, {tag}" + (" (divided by the noise gain)" if g is not None else "")))
+            title = f"{rec.id}: residuals, {tag}" + ("" if g is None else " (divided by the noise gain)")
+            atomic.write_bytes(fig_dir / name, residual_figure(d, None, title=title))
             sig = [_label(k, d) for k in d["significant"]]
             log(f"diagnostics {tag} {rec.id}: significant structure in {', '.join(sig) or 'none'}")
             out.append({"test": rec.id, "model": tag, "figure": name, "significant_views": sig,

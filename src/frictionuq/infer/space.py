@@ -124,8 +124,8 @@ class Space:
         if "chatter" not in self.effects:
             return None
         named = self.named(theta)
-        return tuple(np.asarray(named[n] if n in named else np.full(len(named[self.names[0]]),
-                                                                      P.PARAMS[n].default), float)
+        W = np.atleast_2d(theta).shape[0]
+        return tuple(np.broadcast_to(np.asarray(named.get(n, P.PARAMS[n].default), float), (W,))
                      for n in ("a_ch", "s_ch", "w_ch"))
 
     def noise_config(self) -> dict:
