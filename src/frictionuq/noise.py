@@ -91,10 +91,15 @@ def reversal_state(x, eps: float = 0.0):
     return d, x_r, n_rev
 
 
+def since_reversal_from(x, d, x_r) -> np.ndarray:
+    """The spec's s (>= 0) from reversal_state's direction d and reversal point x_r."""
+    return np.maximum(0.0, d * (np.asarray(x, dtype=float) - x_r))
+
+
 def since_reversal(x, eps: float = 0.0) -> np.ndarray:
     """Travel since the last reversal (m) at every sample, the spec's s (>= 0)."""
     d, x_r, _ = reversal_state(x, eps)
-    return np.maximum(0.0, d * (np.asarray(x, dtype=float) - x_r))
+    return since_reversal_from(x, d, x_r)
 
 
 def chatter_gain(s, a, s0, w) -> np.ndarray:

@@ -222,7 +222,7 @@ def noise_gain(x, draws: Draws, eps: float) -> np.ndarray | None:
         return None
     from .noise import chatter_gain, since_reversal
     a, s0, w = (np.broadcast_to(np.asarray(draws.params.get(n, P.PARAMS[n].default), float), (draws.size,))
-                for n in ("a_ch", "s_ch", "w_ch"))
+                for n in P.EFFECTS["chatter"])
     return chatter_gain(since_reversal(np.asarray(x, float), float(eps)), a, s0, w)
 
 

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..noise import reversal_state
+from ..noise import reversal_state, since_reversal_from
 
 FEATURE_UNITS: dict[str, str] = {
     "displacement": "m",
@@ -69,7 +69,7 @@ def features(t, x, force_model, eps: float = 0.0, applied=None) -> dict[str, np.
         "velocity": np.gradient(x, t),
         "time": t.copy(),
         "cycle": (n_rev // 2).astype(float),
-        "since_reversal": np.maximum(0.0, d * (x - x_r)),
+        "since_reversal": since_reversal_from(x, d, x_r),
     }
     if force_model is not None:
         out["energy"] = dissipated_energy(x, force_model)

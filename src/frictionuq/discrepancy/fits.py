@@ -30,7 +30,7 @@ def white_fit(logpost, theta0, rounds: int = 2, max_nfev: int = 40):
     likelihood for a smaller sum of squares (measured on a hidden rate_strengthening campaign:
     from the generator's truth, raw least squares lost 340 nats of log-posterior, the whitened
     fit gained 39). With a noise effect (chatter), each round also fits its parameters
-    (infer.optimize.fit_noise), which least squares cannot move."""
+    (infer.noisefit.fit_noise), which least squares cannot move."""
     th = theta0
     for _ in range(rounds):
         th, _ = least_squares_fit(logpost, th, max_nfev=max_nfev, white=whitening(logpost, th))

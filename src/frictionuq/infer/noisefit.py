@@ -31,21 +31,14 @@ def noise_indices(space) -> list[int]:
     return [i for i, n in enumerate(space.names) if P.PARAMS[n].kind == "noise_effect"]
 
 
-def fit_noise(logpost: LogPosterior, theta: np.ndarray, grid: int = 6) -> np.ndarray:
-    """theta with its noise-effect parameters (chatter) at the maximum of the log-posterior
-    over them alone, the model parameters held (theta itself without a noise effect). A grid
-    of grid^k points over the prior box plus the current point, then Nelder-Mead from the
-    best; the residuals are simulated once (the noise parameters do not change the force).
-    Needed because least squares cannot move a parameter that only scales the noise."""
-    from scipy.optimize import minimize
-    idx = noise_indices(logpost.space)
-    theta = np.asarray(theta, float)
-    if not idx:
-        return theta
+def noise_objective(logpost: LogPosterior, theta: np.ndarray, idx: list[int]):
+    """lp(U): the log-posterior (up to a constant) at theta with its noise-effect coordinates
+    idx replaced by the rows of U (W, len(idx)); the residuals are simulated once, here (the
+    noise parameters do not change the force)."""
     sp = logpost.space
     E = [logpost.residuals(theta[None, :], rec)[0] for rec in logpost.records]
 
-    def lp(U):                     # U: (W, k) noise coordinates -> log-posterior up to a constant
+    def lp(U):
         T = np.repeat(theta[None, :], U.shape[0], axis=0)
         T[:, idx] = U
         out = sp.log_prior(T)
@@ -56,6 +49,22 @@ def fit_noise(logpost: LogPosterior, theta: np.ndarray, grid: int = 6) -> np.nda
             out[ok] += (noisemodel.log_marginal_stats(noisemodel.suff_stats(e), rec.n, **logpost.noise)
                         - np.log(g).sum(axis=1))
         return out
+    return lp
+
+
+def fit_noise(logpost: LogPosterior, theta: np.ndarray, grid: int = 6) -> np.ndarray:
+    """theta with its noise-effect parameters (chatter) at the maximum of the log-posterior
+    over them alone, the model parameters held (theta itself without a noise effect). A grid
+    of grid^k points over the prior box plus the current point, then Nelder-Mead from the
+    best (noise_objective). Needed because least squares cannot move a parameter that only
+    scales the noise."""
+    from scipy.optimize import minimize
+    idx = noise_indices(logpost.space)
+    theta = np.asarray(theta, float)
+    if not idx:
+        return theta
+    sp = logpost.space
+    lp = noise_objective(logpost, theta, idx)
     lo, hi = sp.lo[idx], sp.hi[idx]
     axes = [np.linspace(a + 0.02 * (b - a), b - 0.02 * (b - a), grid) for a, b in zip(lo, hi)]
     G = np.vstack([np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, len(idx)), theta[idx]])
@@ -72,7 +81,8 @@ def fit_noise(logpost: LogPosterior, theta: np.ndarray, grid: int = 6) -> np.nda
 
 def noise_block_hessian(logpost: LogPosterior, theta: np.ndarray, idx: list[int]) -> np.ndarray:
     """-Hessian of the log-posterior over the noise-effect coordinates idx at theta (central
-    differences, one batch; the force does not depend on them, so the surface is smooth)."""
+    differences of noise_objective, one batch; the force does not depend on them, so the
+    surface is smooth and the residuals are simulated once)."""
     sp = logpost.space
     k = len(idx)
     h = 1e-3 * (sp.hi[idx] - sp.lo[idx])
@@ -82,11 +92,11 @@ def noise_block_hessian(logpost: LogPosterior, theta: np.ndarray, idx: list[int]
     for a in range(k):
         for b in range(a, k):
             for sa, sb in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
-                p = theta.copy()
-                p[idx[a]] += sa * h[a]
-                p[idx[b]] += sb * h[b]
+                p = theta[idx].copy()
+                p[a] += sa * h[a]
+                p[b] += sb * h[b]
                 pts.append(p)
-    v = logpost.log_prob(np.array(pts))
+    v = noise_objective(logpost, theta, idx)(np.array(pts))
     H = np.zeros((k, k))
     m = 0
     for a in range(k):

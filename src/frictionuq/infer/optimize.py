@@ -117,13 +117,15 @@ def least_squares_fit(logpost: LogPosterior, theta0: np.ndarray, max_nfev: int =
     With a noise effect (chatter) the residuals are divided by its gain at theta0, held fixed:
     least squares cannot fit a noise parameter (fit_noise does), only weigh by it."""
     sp = logpost.space
-    th_gain = np.asarray(theta0, float)
+    gains = [logpost.noise_gain(np.atleast_2d(theta0), j) for j in range(len(logpost.records))]
 
     def resid_batch(th):
         th = np.atleast_2d(th)
         parts = []
         for j, rec in enumerate(logpost.records):
-            e = scaled_residuals(logpost, th, j, gain_at=th_gain)
+            e = logpost.residuals(th, rec)
+            if gains[j] is not None:
+                e = e / gains[j]
             if white is not None:     # AR(1)-whitened and scaled by the innovation sd
                 phi, s = white[j]
                 e = np.concatenate([e[:, :1] * np.sqrt(1 - phi**2), e[:, 1:] - phi * e[:, :-1]],

@@ -126,7 +126,7 @@ class Space:
         named = self.named(theta)
         W = np.atleast_2d(theta).shape[0]
         return tuple(np.broadcast_to(np.asarray(named.get(n, P.PARAMS[n].default), float), (W,))
-                     for n in ("a_ch", "s_ch", "w_ch"))
+                     for n in P.EFFECTS["chatter"])
 
     def noise_config(self) -> dict:
         """Arguments of noisemodel.log_marginal / draw_noise: kind, bounds, fixed values."""
