@@ -5,6 +5,7 @@ wall time, then the hit rate and false-alarm count, in one run.
 
     .venv/bin/python benchmarks/bench_discover.py [--full] [--refit] [--seeds 1 2] [--devices brfd mfd]
         [--effects none eccentricity ...] [--extra-effects takeup_overshoot] [--simulate-at raw|kept]
+        [--also chatter --max-effects 2]
         [--verbose]
 
 --full: full-length records (two harmonics of ~5,000 samples and a Kobe replay, the issue's speed
@@ -45,6 +46,11 @@ def main(argv=None) -> int:
     ap.add_argument("--ramp-start", type=float, default=None, help="with --ramp: the first "
                     "cycle's amplitude as a fraction of the full one (default hidden.RAMP_START; "
                     "1: a constant-amplitude control)")
+    ap.add_argument("--also", default=None, metavar="EFFECT", help="a second effect hidden in "
+                    "every campaign with the first (hidden_campaign(also=)); use with --max-effects 2")
+    ap.add_argument("--max-effects", type=int, default=1, help="discover's max_effects: effects "
+                    "named one per round (default 1); a campaign counts as right when the named "
+                    "set is the hidden set")
     ap.add_argument("--verbose", action="store_true", help="also the top two candidates' gain per "
                     "held-out unit and the decision's reason")
     a = ap.parse_args(argv)
@@ -57,18 +63,22 @@ def main(argv=None) -> int:
                 for seed in a.seeds:
                     d = Path(tmp) / f"{dev}-{eff}-{seed}"
                     ans = hidden_campaign(d / "c", dev, eff, seed=seed, short=not a.full,
-                                          ramp=a.ramp, **({} if a.ramp_start is None else
+                                          ramp=a.ramp, also=a.also if eff else None, **({} if a.ramp_start is None else
                                                            {"ramp_start": a.ramp_start}))
                     t0 = time.perf_counter()
                     doc = discover(d / "c", d / "out", cfg, seed=1, refit=a.refit,
-                                   extra_effects=tuple(a.extra_effects))
+                                   extra_effects=tuple(a.extra_effects), max_effects=a.max_effects)
                     secs = time.perf_counter() - t0
-                    row = {"device": dev, "hidden": ans["effect"], "named": doc["named_effect"],
+                    hidden = sorted(ans["effects"])
+                    row = {"device": dev, "hidden": "+".join(hidden) or "none",
+                           "named": "+".join(doc["named_effects"]) or "none",
+                           "right": sorted(doc["named_effects"]) == hidden,
                            "seconds": secs, "rmse_before": doc["rmse_before"],
                            "rmse_after": doc["rmse_after"], "noise": ans["noise_sd_N"]}
-                    if a.refit and eff and doc["named_effect"] == eff:
+                    if a.refit and eff and row["right"]:
                         ok = [doc["effect_parameters"][n]["q2.5"] <= v <= doc["effect_parameters"][n]["q97.5"]
-                              for n, v in ans["parameters"].items() if n in doc["effect_parameters"]]
+                              for q in ans["effects"].values() for n, v in q.items()
+                              if n in doc["effect_parameters"]]
                         row["params_inside"] = f"{sum(ok)}/{len(ok)}"
                     best = doc["candidates"][0] if doc["candidates"] else {}
                     g = best.get("elpd_gain")
@@ -85,7 +95,12 @@ def main(argv=None) -> int:
                     if a.verbose:
                         print(f"      gain per held-out unit (nats): {row['per_unit']}; MAP gain on "
                               f"all units: {row['map_gain']}; {doc['reason']}", flush=True)
-    hits = sum(r["named"] == r["hidden"] for r in rows if r["hidden"] != "none")
+                        for r in doc["rounds"][1:]:
+                            c = r["candidates"][0] if r["candidates"] else {}
+                            print(f"      round {r['round']}: named {r['named_effect']}; best "
+                                  f"{c.get('effect')} per unit {[round(g, 1) for g in c.get('gain_per_unit', [])]}"
+                                  f" MAP {c.get('map_gain', 0):+.1f}; {r['reason']}", flush=True)
+    hits = sum(r["right"] for r in rows if r["hidden"] != "none")
     n_eff = sum(r["hidden"] != "none" for r in rows)
     fa = sum(r["named"] != "none" for r in rows if r["hidden"] == "none")
     n_none = sum(r["hidden"] == "none" for r in rows)

@@ -114,7 +114,7 @@ def ramp_drive(frequency_hz: float, amp: float, cycles: int = RAMP_CYCLES,
 def hidden_campaign(out_dir, device: str, effect: str | None, seed: int,
                     answer_path=None, short: bool = False, eq_seconds: float = SHORT_EQ_SECONDS,
                     eq_from: str = "strong", ramp: bool = False,
-                    ramp_start: float = RAMP_START) -> dict:
+                    ramp_start: float = RAMP_START, also: str | None = None) -> dict:
     """Write a 3-test campaign with `effect` hidden (None: no effect) to out_dir; returns the
     answer {effect, parameters, noise_sd_N, ...} (also written to answer_path if given).
     short: 4 cycles per harmonic and `eq_seconds` of the ground motion, from its strong motion
@@ -122,7 +122,9 @@ def hidden_campaign(out_dir, device: str, effect: str | None, seed: int,
     2026-11-25, night, whose Kobe replay was the first 20 s). ramp: a fourth test, a sine of
     geometrically growing amplitude (ramp_drive) from ramp_start x the full amplitude (1: a
     constant-amplitude sine of the same length, the control that adds the data without the
-    small reversals)."""
+    small reversals). also: a second effect hidden with the first (discover --max-effects), its
+    parameters drawn from a separate random stream, so that the campaign is the one-effect
+    campaign of the same seed plus this effect; the answer lists both under "effects"."""
     if eq_from not in ("strong", "start"):
         raise ValueError(f"hidden_campaign: eq_from must be 'strong' or 'start', got {eq_from!r}")
     out = Path(out_dir)
@@ -153,19 +155,24 @@ def hidden_campaign(out_dir, device: str, effect: str | None, seed: int,
     fc = 0.5 * (p["fc_fwd"] + p["fc_bwd"])
     e_ref = 4 * fc * amp * 10                   # energy of ~10 harmonic cycles (J)
     eff_p = draw_effect(effect, rng, amp, v_max, e_ref)
-    effects = {effect: eff_p} if effect else None
+    effects = {effect: eff_p} if effect else {}
+    if also is not None:
+        if also == effect or effect is None:
+            raise ValueError(f"hidden_campaign: also={also!r} needs a different first effect")
+        effects[also] = draw_effect(also, np.random.default_rng([seed, 4243]), amp, v_max, e_ref)
+    noise_effects = [e for e in effects if e in NOISE_EFFECTS]
     sd = NOISE_REL_SD * fc
     tests, toml = [], []
     (out / "tests").mkdir(parents=True, exist_ok=True)
     for tid, kind, f, t, x in drives:
         n = t.size
         actual, measured = applied_signals(t, a_si, rng)
-        F = simulate(t, x, p, effects=effects, eps=0.0,
-                     applied=actual if effect == "applied_tracking" else None)
+        F = simulate(t, x, p, effects=effects or None, eps=0.0,
+                     applied=actual if "applied_tracking" in effects else None)
         noise = ar1_from_normals(rng.standard_normal(n), NOISE_PHI, sd)
-        if effect in NOISE_EFFECTS:      # chatter: more noise in a window after each reversal
-            noise = noise * chatter_gain(since_reversal(x), eff_p["a_ch"], eff_p["s_ch"],
-                                         eff_p["w_ch"])[0]
+        for e in noise_effects:      # chatter: more noise in a window after each reversal
+            q = effects[e]
+            noise = noise * chatter_gain(since_reversal(x), q["a_ch"], q["s_ch"], q["w_ch"])[0]
         y = F + noise
         a_out = measured if unit_applied == "N" else measured / 6894.757293168
         body = "time,displacement,force,applied\n" + "".join(
@@ -178,7 +185,8 @@ def hidden_campaign(out_dir, device: str, effect: str | None, seed: int,
             f'paper twin with a hidden effect"\n[units]\ntime = "s"\ndisplacement = "m"\n'
             f'force = "N"\napplied = "{unit_applied}"\n\n')
     atomic.write_text(out / "campaign.toml", head + "\n".join(toml))
-    answer = {"device": device, "effect": effect or "none", "parameters": eff_p, "seed": seed,
+    answer = {"device": device, "effect": effect or "none", "parameters": eff_p,
+              "effects": effects, "seed": seed,
               "noise_sd_N": sd, "noise_phi": NOISE_PHI, "applied": level,
               "applied_unit": unit_applied, "tests": tests}
     if answer_path is not None:
