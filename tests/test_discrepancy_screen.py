@@ -185,3 +185,52 @@ def test_ramped_test_is_appended_without_moving_the_others(tmp_path):
     assert np.allclose(ratios, (1 / RAMP_START) ** (1 / RAMP_CYCLES), rtol=0.1), ratios
     t, xc = ramp_drive(RAMP_FREQ_HZ, amp, start=1.0)
     assert t.size == x.size and np.allclose(np.abs(xc).max(), amp, rtol=1e-3)
+
+
+def test_second_hidden_effect_adds_to_the_one_effect_campaign(tmp_path):
+    """hidden_campaign(also=...) hides a second effect with the first (discover --max-effects):
+    the first effect's draws are those of the one-effect campaign of the same seed, and with a
+    noise effect (chatter) as the second, the data differ from the one-effect campaign's by the
+    noise times (g - 1), exactly: the force model and the noise draws are shared. Deterministic."""
+    import numpy as np
+    import pytest
+    from frictionuq.noise import chatter_gain, since_reversal
+    a = hidden_campaign(tmp_path / "a", "brfd", "takeup_overshoot", seed=11, short=True)
+    b = hidden_campaign(tmp_path / "b", "brfd", "takeup_overshoot", seed=11, short=True, also="chatter")
+    assert a["parameters"] == b["parameters"] == b["effects"]["takeup_overshoot"]
+    assert set(b["effects"]) == {"takeup_overshoot", "chatter"} and set(a["effects"]) == {"takeup_overshoot"}
+    q = b["effects"]["chatter"]
+    assert 4.0 <= q["a_ch"] <= 20.0
+    ca, cb = load_campaign(tmp_path / "a"), load_campaign(tmp_path / "b")
+    # the noise of a: y_a - F; of b: (y_a - F) g, so y_b - y_a = (y_a - F) (g - 1)
+    from frictionuq import published as pub
+    from frictionuq.model import simulate
+    from frictionuq.discrepancy.hidden import LEVEL
+    p = pub.published_params("brfd", LEVEL["brfd"])
+    for ta, tb in zip(ca.tests, cb.tests):
+        ra, rb = ta.record, tb.record
+        F = simulate(ra.t, ra.x, p, effects={"takeup_overshoot": a["parameters"]}, eps=0.0)
+        g = chatter_gain(since_reversal(ra.x), q["a_ch"], q["s_ch"], q["w_ch"])[0]
+        # to 1 mN: the CSVs round x to 9 digits (F moves by ~1e-4 N) and the force to 1 uN
+        assert np.allclose(rb.force - ra.force, (ra.force - F) * (g - 1.0), rtol=0, atol=1e-3), ta.id
+        assert np.max(np.abs(rb.force - ra.force)) > 1.0
+    with pytest.raises(ValueError, match="also"):
+        hidden_campaign(tmp_path / "c", "brfd", "chatter", seed=11, short=True, also="chatter")
+    with pytest.raises(ValueError, match="also"):
+        hidden_campaign(tmp_path / "d", "brfd", None, seed=11, short=True, also="chatter")
+
+
+def test_max_effects_is_checked(tmp_path, capsys):
+    """discover(max_effects=0) and `--max-effects 0` are refused before any work: one line, exit
+    code 2, nothing written."""
+    import pytest
+    from frictionuq.cli import main
+    from frictionuq.discrepancy.discover import discover
+    from frictionuq.errors import InputError
+    hidden_campaign(tmp_path / "c", "mfd", None, seed=2, short=True)
+    with pytest.raises(InputError, match="max_effects"):
+        discover(tmp_path / "c", tmp_path / "out", max_effects=0)
+    code = main(["discover", str(tmp_path / "c"), "--out", str(tmp_path / "out"), "--max-effects", "0"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "max_effects" in err, err
+    assert not (tmp_path / "out").exists()

@@ -71,6 +71,8 @@ def test_defaults_are_filled_in(tmp_path):
     ("\n[compare]\nenabled = 'yes'\n", "[compare].enabled", "true or false"),
     ("\n[discrepancy]\nenabled = 1\n", "[discrepancy].enabled", "true or false"),
     ("\n[discrepancy]\ncandidates = []\n", "discrepancy.candidates", "unknown key"),
+    ("\n[discrepancy]\nmax_effects = 0\n", "[discrepancy].max_effects", "must be >= 1"),
+    ("\n[discrepancy]\nmax_effects = 1.5\n", "[discrepancy].max_effects", "integer"),
     ("\n[discrepancy]\nextra_effects = [\"eccentricity\"]\n", "[discrepancy].extra_effects",
      "not one of chatter, speed_weakening, takeup_overshoot"),
 ])

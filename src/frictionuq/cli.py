@@ -128,7 +128,7 @@ def _cmd_discover(a):
     cfg = FitConfig(likelihood=a.likelihood, sampler=samp, tests=tuple(a.test) if a.test else None,
                     kinds=tuple(a.kind) if a.kind else None, drive_lowpass=a.drive_lowpass)
     d = discover(a.campaign, a.out, cfg, seed=a.seed, refit=not a.no_refit,
-                 extra_effects=tuple(a.extra_effect or ()),
+                 extra_effects=tuple(a.extra_effect or ()), max_effects=a.max_effects,
                  log=lambda m: print(m, file=sys.stderr))
     print(f"{'candidate':<20}{'ELPD gain (nats)':>18}{'SE':>10}{'MAP gain (nats)':>17}"
           f"{'RMSE after (N)':>16}")
@@ -139,6 +139,9 @@ def _cmd_discover(a):
             gain, se = f"{c['elpd_gain']:18.1f}", f"{c['elpd_gain_se']:10.1f}"
         print(f"{c['effect']:<20}{gain}{se}{c['map_gain']:17.1f}{c['rmse_after']:16.4g}")
     print(f"named effect: {d['named_effect']} ({d['reason']})")
+    for r in d["rounds"][1:]:
+        print(f"round {r['round']} (against 3-stage + {' + '.join(r['baseline_effects'])}): "
+              f"named {r['named_effect']} ({r['reason']})")
     print(f"RMSE before {d['rmse_before']:.4g} N, after {d['rmse_after']:.4g} N"
           + (f", noise scale {d['noise_scale']:.4g} N" if d["noise_scale"] else ""))
     for n, st in d["effect_parameters"].items():
@@ -320,6 +323,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--extra-effect", action="append", metavar="EFFECT",
                    help="also screen this effect beyond the spec's library "
                         f"({', '.join(sorted(BEYOND_SPEC))})")
+    s.add_argument("--max-effects", type=int, default=1, metavar="N",
+                   help="name up to N effects, one per round, each screened against the model "
+                        "with the ones named before (default 1)")
     _add_selection(s, "cap on stored sampler steps of the refit")
     s.set_defaults(func=_cmd_discover)
 

@@ -26,7 +26,8 @@ the campaign's own applied unit for `applied` (e.g. lb).
     [report]    enabled = true, title, published = "none" | "brfd" | "mfd"
     [discrepancy] enabled = false, refit = true, tests/kinds (default: the fit's),
                 extra_effects = [] (effects beyond the spec to screen too: "takeup_overshoot",
-                "speed_weakening"):
+                "speed_weakening", "chatter"), max_effects = 1 (how many effects may be named,
+                one per round):
                 the `frictionuq discover` stage (screen the effect library, name, refit)
 """
 from __future__ import annotations
@@ -57,7 +58,7 @@ SECTIONS = {
     "predict": {"n_draws", "validate", "harmonic", "ground_motion"},
     "compare": {"enabled", "models", "tests", "kinds", "samples_per_cycle", "sampler"},
     "report": {"enabled", "title", "published"},
-    "discrepancy": {"enabled", "refit", "tests", "kinds", "extra_effects"},
+    "discrepancy": {"enabled", "refit", "tests", "kinds", "extra_effects", "max_effects"},
 }
 HARMONIC_KEYS = {"name", "amplitude_m", "frequency_hz", "applied"}
 GROUND_KEYS = {"name", "record", "peak_m", "applied", "rate_hz"}
@@ -341,7 +342,9 @@ def load_workflow(path) -> Workflow:
                           "tests": c.strings(dt, "tests", "[discrepancy]"),
                           "kinds": c.strings(dt, "kinds", "[discrepancy]", KINDS),
                           "extra_effects": c.strings(dt, "extra_effects", "[discrepancy]",
-                                                     tuple(sorted(BEYOND_SPEC)))}
+                                                     tuple(sorted(BEYOND_SPEC))),
+                          "max_effects": c.num(dt, "max_effects", "[discrepancy]", 1,
+                                               integer=True, minimum=1)}
     if cfg["fit"]["likelihood"] == "arma":     # held-out scoring integrates AR(1)/iid noise only
         for sec in ("compare", "discrepancy"):
             if cfg[sec]["enabled"]:

@@ -3,8 +3,12 @@
 1. Screen (screen.py): per applied-force level, the baseline 3-stage model and every candidate
    effect of the library by the held-out tests' log predictive densities, leave one test out
    (ratios of Laplace evidences, predictive.py).
-2. Decide (screen.decide): the best candidate, or "none" (decision rule in screen.py).
-3. Refit by MCMC (infer.fit.run_fit) with the named effect, per level: the effect's parameters
+2. Decide (screen.decide): the best candidate, or "none" (decision rule in screen.py). With
+   max_effects > 1 (forward selection, _screen_rounds): after naming one, screen the remaining
+   candidates again against the model with the effects named so far, by the same rule, until a
+   round says "none" or max_effects are named. Real records can carry several effects (the ARTS
+   loops: chatter, an overshoot at the take-up); the default names one, as the issue asks.
+3. Refit by MCMC (infer.fit.run_fit) with the named effect(s), per level: the effect's parameters
    with 95 % intervals, and the RMSE after. The sampler starts from the screening's MAP of the
    named model on that level (polished, no second multi-start search: it cost 30 s of a 5-minute
    run on a full-length MFD campaign).
@@ -87,18 +91,19 @@ def _label(view: str, d: dict) -> str:
     return view
 
 
-def _gap(level_tests, cfg, level: dict, named: str, seed: int, fig_dir: Path, log) -> list[dict]:
+def _gap(level_tests, cfg, base_map: dict, named: list, named_map: dict, seed: int,
+         fig_dir: Path, log) -> list[dict]:
     """The gap before and after, per test of a level: residual diagnostics (diagnostics.diagnose)
-    at the baseline's MAP and, when an effect is named, at the MAP with it (figures
-    residuals-<model>-<test>.png), and the loops of both models over the data with their
-    residuals (loops-<test>.png); RMSE (offset removed) of each."""
+    at the baseline's MAP (base_map) and, when effects are named, at the MAP of the model with all
+    of them (named_map) (figures residuals-<model>-<test>.png), and the loops of both models over
+    the data with their residuals (loops-<test>.png); RMSE (offset removed) of each."""
     from .diagnostics import diagnose
     from .plots import centred_rmse, loop_figure, residual_figure
-    models = [("baseline", ())] + ([(f"with {named}", (named,))] if named != "none" else [])
-    forces = {tag: _model_forces(level_tests, cfg, eff, level["models"][eff[0] if eff else "baseline"]["map"])
-              for tag, eff in models}
+    models = [("baseline", (), base_map)] + ([(f"with {' + '.join(named)}", tuple(named), named_map)]
+                                              if named else [])
+    forces = {tag: _model_forces(level_tests, cfg, eff, m) for tag, eff, m in models}
     out = []
-    for tag, _ in models:
+    for tag, _, _ in models:
         for rec, F, g in forces[tag]:
             # with a noise effect (chatter) the residual in units of its noise model, which the
             # likelihood takes as stationary: what the effect leaves unexplained
@@ -115,9 +120,9 @@ def _gap(level_tests, cfg, level: dict, named: str, seed: int, fig_dir: Path, lo
                         "rmse": centred_rmse(rec.y - F), "diagnostics": d})
     for i, (rec, _, _) in enumerate(forces["baseline"]):
         name = f"loops-{rec.id}.png"
-        png = loop_figure(rec.t, rec.x, rec.y, {tag: forces[tag][i][1] for tag, _ in models},
+        png = loop_figure(rec.t, rec.x, rec.y, {tag: forces[tag][i][1] for tag, _, _ in models},
                           title=f"{rec.id}: measured and modelled force, "
-                                + (f"baseline and with {named}" if named != "none" else "baseline (none named)"))
+                                + (f"baseline and {models[-1][0]}" if named else "baseline (none named)"))
         atomic.write_bytes(fig_dir / name, png)
         for g in out:
             if g["test"] == rec.id:
@@ -125,12 +130,53 @@ def _gap(level_tests, cfg, level: dict, named: str, seed: int, fig_dir: Path, lo
     return out
 
 
+def _candidate_rows(ranked) -> list[dict]:
+    return [{"effect": r["effect"], "elpd_gain": r["elpd_gain"], "elpd_gain_se": r["elpd_gain_se"],
+             "rmse_after": r["rmse_map"], "gain_per_unit": r["gain_per_unit"],
+             "map_gain": r["map_gain"], "screened_out": r["screened_out"],
+             "n_params": r["n_params"]} for r in ranked]
+
+
+def _screen_rounds(specs, cfg, seed, effects, extra_effects, max_effects, log) -> list[dict]:
+    """Forward selection, one effect per round: round 1 screens the candidates against the plain
+    3-stage model; while a round names an effect and fewer than max_effects are named, the next
+    round takes the model with the effects named so far as its baseline (started from the named
+    model's MAP of the round before, on each level) and screens the remaining candidates against
+    it, by the same rule (screen.decide). [{"baseline_effects", "named", "reason", "ranked",
+    "levels"}] per round."""
+    named_so_far: list[str] = []
+    rounds = []
+    for r in range(max_effects):
+        levels = []
+        for i, s in enumerate(specs):
+            cands = list(effects) if effects is not None else screen.candidates(s.tests, extra_effects)
+            start = rounds[-1]["levels"][i]["models"][rounds[-1]["named"]]["map"] if rounds else None
+            tag = f"round {r + 1}, " if max_effects > 1 else ""
+            log(f"{tag}level {s.id}: screening {len(s.tests)} test(s)"
+                + (f" against 3-stage + {' + '.join(named_so_far)}" if named_so_far else ""))
+            lv = screen.screen_level(s.tests, cfg, seed, effects=cands, base_effects=named_so_far,
+                                     base_start=start, log=lambda m, i=s.id: log(f"{tag}{i}: {m}"))
+            lv["id"] = s.id
+            levels.append(lv)
+        ranked = screen.rank(levels) if len(levels[0]["models"]) > 1 else []
+        named, reason = screen.decide(ranked, levels)
+        log(f"{f'round {r + 1}: ' if max_effects > 1 else ''}named effect: {named} ({reason})")
+        rounds.append({"baseline_effects": list(named_so_far), "named": named, "reason": reason,
+                       "ranked": ranked, "levels": levels})
+        if named == "none":
+            break
+        named_so_far.append(named)
+    return rounds
+
+
 def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: int = 1,
              effects=None, extra_effects=(), refit: bool = True, diagnostics: bool = True,
-             log=None) -> dict:
+             max_effects: int = 1, log=None) -> dict:
     """Run the workflow on a campaign; returns (and writes) the discrepancy document.
     effects: the candidates (default: screen.candidates, the spec's library); extra_effects:
-    effects beyond the spec (params.BEYOND_SPEC) to screen as well.
+    effects beyond the spec (params.BEYOND_SPEC) to screen as well. max_effects: how many
+    effects may be named, one per round (_screen_rounds); named_effect is the first,
+    named_effects all of them, and the refit and the gap are those of the model with all.
 
     Decimated records are simulated as the config says (raw rate by default, as the fits)."""
     from .. import __version__
@@ -142,6 +188,8 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
     if cfg.likelihood not in ("iid", "ar1"):
         raise InputError(f"discover: likelihood {cfg.likelihood!r} is not supported by the "
                          "held-out screening; use ar1 (default) or iid")
+    if not (isinstance(max_effects, int) and max_effects >= 1):
+        raise InputError(f"discover: max_effects must be an integer >= 1, got {max_effects!r}")
     from .. import params as P
     bad = [e for e in extra_effects if e not in P.BEYOND_SPEC]
     if bad:
@@ -153,36 +201,34 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out}: exists and is not a folder")
     specs = plan(camp, "applied", cfg)
-    levels = []
-    for s in specs:
-        log(f"level {s.id}: screening {len(s.tests)} test(s)")
-        cands = list(effects) if effects is not None else screen.candidates(s.tests, extra_effects)
-        lv = screen.screen_level(s.tests, cfg, seed, effects=cands,
-                                 log=lambda m, i=s.id: log(f"{i}: {m}"))
-        lv["id"] = s.id
-        levels.append(lv)
-    ranked = screen.rank(levels)
-    named, reason = screen.decide(ranked, levels)
-    log(f"named effect: {named} ({reason})")
+    rounds = _screen_rounds(specs, cfg, seed, effects, extra_effects, max_effects, log)
+    named_all = [r["named"] for r in rounds if r["named"] != "none"]
+    named = named_all[0] if named_all else "none"
+    levels = rounds[0]["levels"]
+    # the levels of the round whose named model is the final one (its MAP per level)
+    last = next((r for r in reversed(rounds) if r["named"] != "none"), rounds[0])
+    final_maps = [lv["models"][last["named"] if named_all else "baseline"]["map"]
+                  for lv in last["levels"]]
     rmse_before = float(np.mean([lv["models"]["baseline"]["rmse_map"] for lv in levels]))
     doc = {"package_version": __version__, "campaign": camp.name, "campaign_path": str(campaign_path),
-           "seed": seed, "config": cfg.to_json(), "named_effect": named, "reason": reason,
+           "seed": seed, "config": cfg.to_json(), "named_effect": named,
+           "named_effects": named_all, "reason": rounds[0]["reason"],
            "decision_rule": screen.RULE, "extra_effects": list(extra_effects),
-           "candidates": [{"effect": r["effect"], "elpd_gain": r["elpd_gain"],
-                           "elpd_gain_se": r["elpd_gain_se"], "rmse_after": r["rmse_map"],
-                           "gain_per_unit": r["gain_per_unit"], "map_gain": r["map_gain"],
-                           "screened_out": r["screened_out"], "n_params": r["n_params"]}
-                          for r in ranked],
+           "max_effects": max_effects,
+           "candidates": _candidate_rows(rounds[0]["ranked"]),
            "candidates_screened": [n for n in levels[0]["models"] if n != "baseline"],
            "rmse_before": rmse_before, "rmse_after": rmse_before, "noise_scale": None,
            "effect_parameters": {}, "levels": levels,
+           "rounds": [{"round": i + 1, "baseline_effects": r["baseline_effects"],
+                       "named_effect": r["named"], "reason": r["reason"],
+                       "candidates": _candidate_rows(r["ranked"]),
+                       **({"levels": r["levels"]} if i else {})} for i, r in enumerate(rounds)],
            "units": {"rmse": "N", "noise_scale": "N", "elpd": "nats"}}
     if refit:
-        eff = () if named == "none" else (named,)
+        eff = tuple(named_all)
         entries = []
-        for s, lv in zip(specs, levels):
+        for s, start in zip(specs, final_maps):
             spec = FitSpec(s.id, s.tests, s.applied, replace(cfg, effects=eff))
-            start = lv["models"][named if eff else "baseline"]["map"]
             entries.append(run_fit(spec, out / "refit", camp.name, resume=False, log=log,
                                    start=start))
         doc["refit"] = [{"id": e["id"], "converged": e["converged"], "rmse": e["rmse"],
@@ -191,20 +237,18 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
         scales = [v for v in (_noise_scale(e, _gain_rms(s.tests, cfg, eff, e))
                               for s, e in zip(specs, entries)) if v is not None]
         doc["noise_scale"] = float(np.median(scales)) if scales else None
-        if named != "none":
-            from .. import params as P
-            for n in P.EFFECTS[named]:
-                st = [e["parameters"][n] for e in entries if n in e["parameters"]]
-                if st:
-                    doc["effect_parameters"][n] = {k: st[0][k] for k in ("mean", "sd", "q2.5", "q97.5")}
-                    doc["effect_parameters"][n]["unit"] = P.PARAMS[n].unit
-    elif named != "none":
-        best = next(r for r in ranked if r["effect"] == named)
-        doc["rmse_after"] = best["rmse_map"]
+        for n in (n for e_ in eff for n in P.EFFECTS[e_]):
+            st = [e["parameters"][n] for e in entries if n in e["parameters"]]
+            if st:
+                doc["effect_parameters"][n] = {k: st[0][k] for k in ("mean", "sd", "q2.5", "q97.5")}
+                doc["effect_parameters"][n]["unit"] = P.PARAMS[n].unit
+    elif named_all:
+        doc["rmse_after"] = next(r for r in last["ranked"] if r["effect"] == last["named"])["rmse_map"]
     if diagnostics:
         doc["diagnostics"] = []
-        for s_, lv in zip(specs, levels):
-            doc["diagnostics"] += _gap(s_.tests, cfg, lv, named, seed, out, log)
+        for s_, lv, fm in zip(specs, levels, final_maps):
+            doc["diagnostics"] += _gap(s_.tests, cfg, lv["models"]["baseline"]["map"], named_all,
+                                       fm, seed, out, log)
     doc["seconds"] = time.perf_counter() - t0
     atomic.write_json(out / "discrepancy.json", jsonable(doc))
     return doc

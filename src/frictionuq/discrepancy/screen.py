@@ -180,10 +180,18 @@ def _set_evidence(model: dict, lp_joint, th_joint) -> None:
     model["heldout_loglik"] = [model["log_evidence"] - f for f in model["fold_log_evidence"]]
 
 
-def screen_level(level_tests, cfg: FitConfig, seed: int, effects=None, log=None) -> dict:
-    """Held-out log-likelihoods of the baseline and every candidate on one level."""
+def screen_level(level_tests, cfg: FitConfig, seed: int, effects=None, log=None,
+                 base_effects=(), base_start: dict | None = None) -> dict:
+    """Held-out log-likelihoods of the baseline and every candidate on one level.
+
+    base_effects: effects the baseline already has (a later round of discover: the effects
+    named before); each candidate is then the baseline plus one more. base_start: {name: value}
+    of the baseline's MAP found before (the previous round's MAP of the model now taken as the
+    baseline), polished instead of a new multi-start search."""
     log = log or (lambda m: None)
-    effects = list(effects) if effects is not None else candidates(level_tests)
+    base_effects = tuple(base_effects)
+    effects = [e for e in (effects if effects is not None else candidates(level_tests))
+               if e not in base_effects]
     folds = heldout_units(level_tests)
     out = {"tests": [t.id for t in level_tests], "units": [h.id for _, h in folds], "models": {}}
     base_theta = {}
@@ -191,11 +199,13 @@ def screen_level(level_tests, cfg: FitConfig, seed: int, effects=None, log=None)
     full_fits = {}        # model -> (log-posterior on all tests, MAP, held-out units' records)
     for name in [None] + effects:
         t0 = time.perf_counter()
-        eff = () if name is None else (name,)
+        eff = base_effects + (() if name is None else (name,))
         lp_all, scales = F.logpost_for(level_tests, eff, cfg)
         rng = np.random.default_rng([seed, 17, len(eff)])
         if name is None:
-            th_all, lpmap, _ = find_map(lp_all, scales, rng, n_random=1, n_prior=1)
+            start = None if base_start is None else lp_all.space.to_theta(
+                {n: base_start[n] for n in lp_all.space.names})
+            th_all, lpmap, _ = find_map(lp_all, scales, rng, n_random=1, n_prior=1, start=start)
         else:        # warm starts: the baseline MAP with the effect at its default and at N_EFFECT_STARTS prior draws
             th_all, lpmap = _candidate_map(lp_all, base_theta, rng)
         key = "baseline" if name is None else name

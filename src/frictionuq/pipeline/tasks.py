@@ -173,8 +173,9 @@ def _discrepancy(wf, task, log):
     cfg = replace(wf.fit_config(), tests=tuple(task.args["tests"]), kinds=None)
     doc = discover(Path(wf.out) / "ingest", d, cfg, seed=wf.seed,
                    refit=wf.config["discrepancy"]["refit"],
-                   extra_effects=tuple(wf.config["discrepancy"]["extra_effects"] or ()), log=log)
-    log(f"discrepancy: named effect {doc['named_effect']}")
+                   extra_effects=tuple(wf.config["discrepancy"]["extra_effects"] or ()),
+                   max_effects=wf.config["discrepancy"]["max_effects"], log=log)
+    log(f"discrepancy: named effect(s) {', '.join(doc['named_effects']) or 'none'}")
 
 
 def _report(wf, task, log):

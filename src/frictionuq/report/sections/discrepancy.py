@@ -1,6 +1,6 @@
 """Section "discrepancy": what `frictionuq discover` (the workflow's discrepancy stage) found:
-the named effect or none, the candidates ranked by held-out ELPD gain, RMSE before and after,
-the effect's parameters with intervals."""
+the named effect or none (and, with --max-effects, the later rounds), the candidates ranked by
+held-out ELPD gain, RMSE before and after, the effects' parameters with intervals."""
 from __future__ import annotations
 
 import json
@@ -19,34 +19,49 @@ def build(ctx, folder=None) -> list[dict]:
         return [B.note("The discrepancy stage was not run in this workflow ([discrepancy] enabled = "
                        "false); `frictionuq discover CAMPAIGN --out DIR` runs it on its own.")]
     d = json.loads(p.read_text())
-    out = [B.para(f"Named effect: {d['named_effect']}. {d['reason']}."),
-           B.para(f"RMSE before (baseline 3-stage, at its MAP): {num(d['rmse_before'])} N; after: "
-                  f"{num(d['rmse_after'])} N"
-                  + (f"; estimated noise scale {num(d['noise_scale'])} N." if d.get("noise_scale") else "."))]
-    if d["named_effect"] in NOISE_EFFECTS:
+    named = d.get("named_effects", [] if d["named_effect"] == "none" else [d["named_effect"]])
+    out = [B.para(f"Named effect: {d['named_effect']}. {d['reason']}.")]
+    for r in d.get("rounds", [])[1:]:       # forward selection (discover --max-effects)
+        out.append(B.para(f"Round {r['round']}, against the 3-stage model with "
+                          f"{' + '.join(r['baseline_effects'])}: named {r['named_effect']} "
+                          f"({r['reason']})."))
+    after = f" (with {' + '.join(named)})" if len(named) > 1 else ""
+    out.append(B.para(f"RMSE before (baseline 3-stage, at its MAP): {num(d['rmse_before'])} N; "
+                      f"after{after}: {num(d['rmse_after'])} N"
+                      + (f"; estimated noise scale {num(d['noise_scale'])} N." if d.get("noise_scale") else ".")))
+    for e in (e for e in named if e in NOISE_EFFECTS):
         out.append(B.para(
-            f"{d['named_effect']} is a noise effect: it changes the measurement noise (more of it in "
+            f"{e} is a noise effect: it changes the measurement noise (more of it in "
             "a window after each reversal), not the force, so the loops and the RMSE barely move "
             "and the noise scale is the rms of the fitted noise sd over the records. The gap it "
             "closes is in the held-out log-likelihood (the candidates' table) and in the bands, "
             "which widen in the window; the residual diagnostics of the model with it use the "
             "residual divided by its noise gain."))
-    rows = [(c["effect"], "not scored (MAP gain too small)" if c.get("screened_out") else num(c["elpd_gain"]),
-             num(c["elpd_gain_se"]), ", ".join(num(g) for g in c["gain_per_unit"]) or num(None),
-             num(c["map_gain"]) if "map_gain" in c else "-", num(c["rmse_after"]), c["n_params"])
-            for c in d["candidates"]]
-    out.append(B.html(table(["candidate effect", "held-out ELPD gain (nats)", "SE (nats)",
-                             "gain per held-out unit (nats)", "MAP gain on all units (nats)",
-                             "RMSE at its MAP (N)", "parameters"],
-                            rows, caption="candidates, ranked")))
+    out.append(_candidates(d["candidates"], "candidates, ranked" + (
+        " (round 1, against the plain 3-stage model)" if len(d.get("rounds", [])) > 1 else "")))
+    for r in d.get("rounds", [])[1:]:
+        out.append(_candidates(r["candidates"], f"round {r['round']}: candidates against 3-stage + "
+                               f"{' + '.join(r['baseline_effects'])}, ranked"))
     if d.get("effect_parameters"):
         out.append(B.html(table(["parameter", "mean", "2.5 %", "97.5 %", "unit"],
                                 [(n, num(s["mean"]), num(s["q2.5"]), num(s["q97.5"]), s["unit"])
                                  for n, s in d["effect_parameters"].items()],
-                                caption="the named effect's parameters (MCMC refit)")))
+                                caption="the named effects' parameters (MCMC refit)" if len(named) > 1
+                                else "the named effect's parameters (MCMC refit)")))
     out.extend(gap_blocks(folder, d))
     out.append(B.note("Decision rule: " + d.get("decision_rule", "")))
     return out
+
+
+def _candidates(cands: list[dict], caption: str) -> dict:
+    """The table of one round's candidates."""
+    rows = [(c["effect"], "not scored (MAP gain too small)" if c.get("screened_out") else num(c["elpd_gain"]),
+             num(c["elpd_gain_se"]), ", ".join(num(g) for g in c["gain_per_unit"]) or num(None),
+             num(c["map_gain"]) if "map_gain" in c else "-", num(c["rmse_after"]), c["n_params"])
+            for c in cands]
+    return B.html(table(["candidate effect", "held-out ELPD gain (nats)", "SE (nats)",
+                         "gain per held-out unit (nats)", "MAP gain on all units (nats)",
+                         "RMSE at its MAP (N)", "parameters"], rows, caption=caption))
 
 
 def gap_blocks(folder, d: dict) -> list[dict]:
