@@ -5,7 +5,7 @@ wall time, then the hit rate and false-alarm count, in one run.
 
     .venv/bin/python benchmarks/bench_discover.py [--full] [--refit] [--seeds 1 2] [--devices brfd mfd]
         [--effects none eccentricity ...] [--extra-effects takeup_overshoot] [--simulate-at raw|kept]
-        [--also chatter --max-effects 2]
+        [--also chatter --max-effects 2] [--chatter-form bursts]
         [--verbose]
 
 --full: full-length records (two harmonics of ~5,000 samples and a Kobe replay, the issue's speed
@@ -51,6 +51,11 @@ def main(argv=None) -> int:
     ap.add_argument("--max-effects", type=int, default=1, help="discover's max_effects: effects "
                     "named one per round (default 1); a campaign counts as right when the named "
                     "set is the hidden set")
+    ap.add_argument("--chatter-form", choices=["window", "bursts"], default="window",
+                    help="how a hidden chatter is generated: the model's own noise window "
+                    "(default) or decaying oscillations from each slip onset "
+                    "(hidden.stick_slip_bursts; its parameters are not the model's, so --refit "
+                    "checks none of them)")
     ap.add_argument("--verbose", action="store_true", help="also the top two candidates' gain per "
                     "held-out unit and the decision's reason")
     a = ap.parse_args(argv)
@@ -63,7 +68,8 @@ def main(argv=None) -> int:
                 for seed in a.seeds:
                     d = Path(tmp) / f"{dev}-{eff}-{seed}"
                     ans = hidden_campaign(d / "c", dev, eff, seed=seed, short=not a.full,
-                                          ramp=a.ramp, also=a.also if eff else None, **({} if a.ramp_start is None else
+                                          ramp=a.ramp, also=a.also if eff else None,
+                                          chatter_form=a.chatter_form, **({} if a.ramp_start is None else
                                                            {"ramp_start": a.ramp_start}))
                     t0 = time.perf_counter()
                     doc = discover(d / "c", d / "out", cfg, seed=1, refit=a.refit,

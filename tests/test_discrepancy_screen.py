@@ -234,3 +234,42 @@ def test_max_effects_is_checked(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "max_effects" in err, err
     assert not (tmp_path / "out").exists()
+
+
+def test_chatter_bursts_are_another_form_of_chatter(tmp_path):
+    """hidden_campaign(chatter_form="bursts") hides chatter as decaying 10-15 Hz oscillations of
+    the load path, one from each slip onset (travel since the reversal reaching d2 + d3), instead
+    of the model's noise window; the AR(1) noise is the window form's of the same seed, so the
+    two campaigns differ by the bursts and by the window's gain only. Checked per test, to 1 mN:
+    nothing before the first onset, a burst after every onset, and the bursts' spectral peak at
+    the drawn frequency. Deterministic."""
+    import pytest
+    from frictionuq import published as pub
+    from frictionuq.discrepancy.hidden import LEVEL
+    from frictionuq.model import simulate
+    from frictionuq.noise import chatter_gain, since_reversal
+    win = hidden_campaign(tmp_path / "w", "brfd", "chatter", seed=11, short=True)
+    bur = hidden_campaign(tmp_path / "b", "brfd", "chatter", seed=11, short=True, chatter_form="bursts")
+    q, qw = bur["effects"]["chatter"], win["effects"]["chatter"]
+    assert bur["chatter_form"] == "bursts" and bur["parameters"] == q
+    assert set(q) == {"f_osc", "zeta_osc", "amp_osc"} and 10.0 <= q["f_osc"] <= 15.0
+    assert 4.0 * bur["noise_sd_N"] <= q["amp_osc"] <= 9.0 * bur["noise_sd_N"]
+    p = pub.published_params("brfd", LEVEL["brfd"])
+    cw, cb = load_campaign(tmp_path / "w"), load_campaign(tmp_path / "b")
+    for tw, tb in zip(cw.tests, cb.tests):
+        rw, rb = tw.record, tb.record
+        F = simulate(rw.t, rw.x, p, eps=0.0)
+        s = since_reversal(rw.x)
+        ar1 = (rw.force - F) / chatter_gain(s, qw["a_ch"], qw["s_ch"], qw["w_ch"])[0]
+        bursts = rb.force - F - ar1
+        onsets = np.flatnonzero((s[1:] >= p["d2"] + p["d3"]) & (s[:-1] < p["d2"] + p["d3"])) + 1
+        assert onsets.size >= 3, tw.id
+        assert np.max(np.abs(bursts[:onsets[0]])) < 1e-3, tw.id
+        period = int(round(1.0 / q["f_osc"] / np.median(np.diff(rw.t))))
+        for k in onsets:
+            assert np.max(np.abs(bursts[k:k + period])) > 0.1 * q["amp_osc"], (tw.id, k)
+        spec = np.abs(np.fft.rfft(bursts)) ** 2
+        f = np.fft.rfftfreq(bursts.size, np.median(np.diff(rw.t)))
+        assert abs(f[np.argmax(spec[1:]) + 1] / q["f_osc"] - 1.0) < 0.1, tw.id
+    with pytest.raises(ValueError, match="chatter_form"):
+        hidden_campaign(tmp_path / "x", "brfd", "chatter", seed=11, short=True, chatter_form="ring")
