@@ -45,7 +45,7 @@ def check_discover(tmp_path, device, effect, seed, refit, also=None, max_effects
                                                         "rate_strengthening", "stage2_nonlinear"}
     noise = ans["noise_sd_N"]
     if effect is None:
-        # nothing hidden: the baseline's MAP (after the nested recheck, screen.nested_recheck) is
+        # nothing hidden: the baseline's MAP (after the nested recheck, discrepancy.recheck) is
         # as good as the least-squares fit from the generating values. Before that recheck its
         # own search ended ~400 nats below them on this campaign (v_s at its upper bound, sigma0
         # at its lower one) and rate_strengthening, which reached them, was named (+322 nats)

@@ -7,7 +7,8 @@ each applied-force level of a campaign:
    infer.optimize.find_map (the multi-start search the fits start from); for a candidate by
    least squares from the baseline's MAP with the effect's parameters at their default and at
    N_EFFECT_STARTS prior draws, and from a differential-evolution search (_candidate_map);
-2. stage 1: a candidate whose MAP on all tests is not more than MIN_GAIN above the baseline's is
+2. stage 1: a candidate whose MAP on all tests is not more than MIN_GAIN above the baseline's
+   (each side refitted from the other's MAP first: recheck.cross_refit) is
    not scored held out (rule (e) below refuses it whatever its held-out score; skipping its
    fold fits and evidences is most of the screening's saving on a campaign where one effect or
    none is present); it is listed with its in-sample gain;
@@ -79,9 +80,10 @@ from ..campaign import Record
 from ..infer.compare import elpd_total
 from ..infer.fit import FitConfig
 from ..infer.likelihood import LogPosterior
-from ..infer.optimize import coarsened, find_map, global_start
+from ..infer.optimize import coarsened, find_map, global_start, heuristic_starts
 from . import fits as F
 from .predictive import log_evidence
+from .recheck import cross_refit, nested_recheck, set_evidence
 
 MIN_GAIN = 20.0
 MIN_UNIT_GAIN = 5.0
@@ -125,7 +127,7 @@ def blocks(test, n: int = N_BLOCKS) -> list:
     return out
 
 
-def _candidate_map(logpost, base: dict, rng) -> tuple[np.ndarray, float]:
+def _candidate_map(logpost, base: dict, rng, scales) -> tuple[np.ndarray, float]:
     """MAP of baseline + one effect by least squares from the baseline's MAP, the effect's
     parameters at their default and at N_EFFECT_STARTS draws from their prior (the baseline's
     own multi-start search already placed the other parameters), and at the best point of
@@ -137,7 +139,15 @@ def _candidate_map(logpost, base: dict, rng) -> tuple[np.ndarray, float]:
     against 523 N s/m), and the training fits of the folds, started there, predicted the 0.5 Hz
     test 400 nats worse than from that fit; the effect was not named (gains +122 / -42 / +205).
     With one global search per candidate: -16,501.8 (above that fit), and with the evidence-ratio
-    score gains +172 / +222 / +269, named (benchmarks/bench_discover.py); about 4 s per candidate."""
+    score gains +172 / +222 / +269, named (benchmarks/bench_discover.py); about 4 s per candidate.
+    And from find_map's own heuristic starts (infer.optimize.heuristic_starts, the effect's
+    parameters at their neutral value or the middle of their prior): where the baseline bends
+    to absorb the hidden effect, the warm starts stay in its basin. Seen on a BRFD campaign with
+    a hidden takeup_overshoot (seed 13): the baseline's MAP had v_s 24 times and sigma2 20 times
+    the generating values, the warm and global starts ended 302 nats above it (the overshoot at
+    a_to_fwd 0.02 against 0.60), the model fitted from the generating values 1,560 above, and
+    reversal_hump was named instead; with the heuristic starts 1,570.6 (test_discrepancy_screen),
+    about 2 s more per candidate."""
     sp = logpost.space
     coarse = coarsened(logpost, simulate="coarse")   # the screening's calibration
     th0 = F.theta_in(sp, base["space"], base["all"])
@@ -147,6 +157,7 @@ def _candidate_map(logpost, base: dict, rng) -> tuple[np.ndarray, float]:
         th = th0.copy()
         th[eff_idx] = d[eff_idx]
         starts.append(th)
+    starts += heuristic_starts(sp, logpost.records, scales)
     first = []
     for s0 in starts:
         th = F.white_fit(coarse, s0, rounds=2, max_nfev=50)
@@ -173,13 +184,6 @@ def heldout_units(level_tests) -> list[tuple[list, object]]:
     return [(units[:k] + units[k + 1:], units[k]) for k in range(len(units))]
 
 
-def _set_evidence(model: dict, lp_joint, th_joint) -> None:
-    """The model's held-out scores (in place): log p(y_k | the other units) = log Z(all units) -
-    log Z(the others) (discrepancy.predictive)."""
-    model["log_evidence"] = log_evidence(lp_joint, th_joint)
-    model["heldout_loglik"] = [model["log_evidence"] - f for f in model["fold_log_evidence"]]
-
-
 def screen_level(level_tests, cfg: FitConfig, seed: int, effects=None, log=None,
                  base_effects=(), base_start: dict | None = None) -> dict:
     """Held-out log-likelihoods of the baseline and every candidate on one level.
@@ -197,7 +201,8 @@ def screen_level(level_tests, cfg: FitConfig, seed: int, effects=None, log=None,
     base_theta = {}
     fold_fits = {}        # model -> [(training log-posterior, theta, its log-posterior)] per fold
     full_fits = {}        # model -> (log-posterior on all tests, MAP, held-out units' records)
-    for name in [None] + effects:
+    fitted = {}           # model -> [log-posterior on all tests, MAP, its log-posterior, seconds]
+    for name in [None] + effects:      # the MAP on all units, the baseline's first
         t0 = time.perf_counter()
         eff = base_effects + (() if name is None else (name,))
         lp_all, scales = F.logpost_for(level_tests, eff, cfg)
@@ -206,18 +211,23 @@ def screen_level(level_tests, cfg: FitConfig, seed: int, effects=None, log=None,
             start = None if base_start is None else lp_all.space.to_theta(
                 {n: base_start[n] for n in lp_all.space.names})
             th_all, lpmap, _ = find_map(lp_all, scales, rng, n_random=1, n_prior=1, start=start)
+            base_theta = {"space": lp_all.space, "all": th_all, "log_prob": lpmap}
         else:        # warm starts: the baseline MAP with the effect at its default and at N_EFFECT_STARTS prior draws
-            th_all, lpmap = _candidate_map(lp_all, base_theta, rng)
-        key = "baseline" if name is None else name
-        if name is not None and lpmap - base_theta["log_prob"] <= MIN_GAIN:
+            th_all, lpmap = _candidate_map(lp_all, base_theta, rng, scales)
+        fitted["baseline" if name is None else name] = [lp_all, th_all, lpmap, time.perf_counter() - t0]
+    changed, moved = cross_refit(fitted, log)
+    lp_base = fitted["baseline"][2]
+    for key, (lp_all, th_all, lpmap, secs) in fitted.items():
+        t0 = time.perf_counter() - secs
+        if key != "baseline" and lpmap - lp_base <= MIN_GAIN:
             # stage 1 of the screen: no better in-sample fit, no held-out scoring (rule (e))
             full_fits[key] = (lp_all, th_all, None)
             out["models"][key] = {"log_prob_map": lpmap, "map": F.values(lp_all.space, th_all),
                                   "rmse_map": F.rmse(lp_all, th_all), "screened_out": True,
-                                  "seconds": time.perf_counter() - t0}
-            log(f"screen {key}: MAP {lpmap - base_theta['log_prob']:+.1f} nats over the baseline's "
+                                  "seconds": secs}
+            log(f"screen {key}: MAP {lpmap - lp_base:+.1f} nats over the baseline's "
                 f"on all units (<= {MIN_GAIN:g}): not scored held out, MAP RMSE "
-                f"{out['models'][key]['rmse_map']:.4g} N ({time.perf_counter() - t0:.1f} s)")
+                f"{out['models'][key]['rmse_map']:.4g} N ({secs:.1f} s)")
             continue
         recs = F.unit_records(lp_all, folds, cfg)
         lp_joint, th_joint = F.joint_fit(lp_all, th_all, recs)
@@ -231,114 +241,13 @@ def screen_level(level_tests, cfg: FitConfig, seed: int, effects=None, log=None,
         out["models"][key] = {"log_prob_map": lpmap, "map": F.values(lp_all.space, th_all),
                               "rmse_map": F.rmse(lp_all, th_all),
                               "fold_log_evidence": [log_evidence(lp, th) for lp, th, _ in fits]}
-        _set_evidence(out["models"][key], lp_joint, th_joint)
+        set_evidence(out["models"][key], lp_joint, th_joint)
         out["models"][key]["seconds"] = time.perf_counter() - t0
         ll = out["models"][key]["heldout_loglik"]
-        if name is None:
-            base_theta = {"space": lp_all.space, "all": th_all, "log_prob": lpmap}
         log(f"screen {key}: held-out log-likelihood {sum(ll):.1f} nats over {len(ll)} unit(s), "
             f"MAP RMSE {out['models'][key]['rmse_map']:.4g} N ({time.perf_counter() - t0:.1f} s)")
-    nested_recheck(out, full_fits, fold_fits, folds, log)
+    nested_recheck(out, full_fits, fold_fits, folds, log, changed, moved, MIN_UNIT_GAIN)
     return out
-
-
-def nested_recheck(out: dict, full_fits: dict, fold_fits: dict, folds, log) -> None:
-    """Give the baseline the candidates' solutions as starting points (in place on `out`).
-
-    Every candidate contains the baseline (its effect at the neutral value), and its fits start
-    from more points than the baseline's. So the baseline is refitted from each candidate's
-    solution without the effect's parameters: on all tests of the level, and on the training tests of each fold where a candidate
-    gains more than MIN_UNIT_GAIN on the held-out unit. The baseline takes a new point only if it
-    reaches a higher log-posterior on the data it is fitted to, never by its held-out score, so
-    the check cannot favour the baseline on the held-out unit; a gain that came from the
-    baseline's optimiser stopping in a poorer local optimum, and not from the effect, disappears.
-    Seen on a clean BRFD campaign simulated at the raw rate (seed 7): the baseline's multi-start
-    search ended 400 nats below the generating values (v_s at its upper bound, sigma0 at its lower
-    one), reversal_hump and rate_strengthening reached them, and rate_strengthening gained 191
-    nats on one held-out test."""
-    base = out["models"]["baseline"]
-    changed = []
-    lp_all, th_b, recs_b = full_fits["baseline"]
-    lp_b = base["log_prob_map"]
-    for name, (lp_c, th_c, _) in full_fits.items():      # every candidate, scored or not
-        if name == "baseline":
-            continue
-        th = F.refit(lp_all, F.theta_in(lp_all.space, lp_c.space, th_c))
-        lp_new = F.log_prob(lp_all, th)
-        if lp_new > lp_b + 1e-6:
-            changed.append({"unit": "all tests", "start_from": name, "log_prob_gain": lp_new - lp_b})
-            log(f"screen baseline: MAP refitted from {name}'s, log-posterior {lp_b:.1f} -> {lp_new:.1f}")
-            th_b, lp_b = th, lp_new
-    if changed:        # the folds' fits from the better MAP too
-        full_fits["baseline"] = (lp_all, th_b, recs_b)
-        base.update(log_prob_map=lp_b, map=F.values(lp_all.space, th_b), rmse_map=F.rmse(lp_all, th_b))
-        _set_evidence(base, *F.joint_fit(lp_all, th_b, recs_b))
-        for k, (train, held) in enumerate(folds):
-            lp_tr, _, lp_k = fold_fits["baseline"][k]
-            th = F.refit(lp_tr, th_b)
-            _take(base, fold_fits, k, lp_tr, th, lp_k, held, changed, "baseline's new MAP", log)
-    for name, fits in fold_fits.items():
-        if name == "baseline":
-            continue
-        for k, (train, held) in enumerate(folds):
-            if out["models"][name]["heldout_loglik"][k] - base["heldout_loglik"][k] <= MIN_UNIT_GAIN:
-                continue
-            lp_tr, _, lp_k = fold_fits["baseline"][k]
-            lp_c, th_c, _ = fits[k]
-            th = F.refit(lp_tr, F.theta_in(lp_tr.space, lp_c.space, th_c))
-            _take(base, fold_fits, k, lp_tr, th, lp_k, held, changed, f"{name}'s solution", log)
-    base["nested_recheck"] = changed
-    # and the other way round: each candidate's fits also from the baseline's (its effect at the
-    # default), so that neither side keeps a poorer optimum the other escaped. For the candidates
-    # not scored (stage 1) only the fit on all tests, so that their listed in-sample gains are
-    # against the baseline's final MAP (it rose by 10.6 nats from three candidates' solutions on
-    # the real 80 lb records, leaving two of them listed below it). Stage 1 compared with the
-    # baseline's first MAP, never a higher one, so it can only have scored too many candidates,
-    # not too few; the log says if a refit here would have passed it.
-    for name, (lp_c, _, recs_c) in list(full_fits.items()):
-        if name == "baseline":
-            continue
-        moved = []
-        m = out["models"][name]
-        th = F.refit(lp_c, F.theta_in(lp_c.space, lp_all.space, th_b))
-        lp_new = F.log_prob(lp_c, th)
-        if lp_new > m["log_prob_map"] + 1e-6:
-            moved.append({"unit": "all tests", "start_from": "the baseline's MAP",
-                          "log_prob_gain": lp_new - m["log_prob_map"]})
-            m.update(log_prob_map=lp_new, map=F.values(lp_c.space, th), rmse_map=F.rmse(lp_c, th))
-            full_fits[name] = (lp_c, th, recs_c)
-            if name in fold_fits:
-                _set_evidence(m, *F.joint_fit(lp_c, th, recs_c))
-        m["nested_recheck"] = moved
-        if name not in fold_fits:
-            if m["log_prob_map"] - base["log_prob_map"] > MIN_GAIN:
-                log(f"screen {name}: MAP refitted from the baseline's final MAP is "
-                    f"{m['log_prob_map'] - base['log_prob_map']:+.1f} nats above it, but the "
-                    "candidate was not scored held out (stage 1 used the baseline's first MAP)")
-            continue
-        for k, (train, held) in enumerate(folds):
-            lp_ck, _, lp_k = fold_fits[name][k]
-            lp_bk, th_bk, _ = fold_fits["baseline"][k]
-            th = F.refit(lp_ck, F.theta_in(lp_ck.space, lp_bk.space, th_bk))
-            _take(m, fold_fits, k, lp_ck, th, lp_k, held, moved, "the baseline's solution", log,
-                  key=name)
-
-
-def _take(model, fold_fits, k, lp_tr, th, lp_k, held, changed, start, log,
-          key="baseline") -> None:
-    """Model `key`'s fold k takes th if it fits the fold's training tests better (a higher
-    training maximum: a larger log Z of the training units, a lower held-out score)."""
-    lp_new = F.log_prob(lp_tr, th)
-    if not lp_new > lp_k + 1e-6:
-        return
-    fold_fits[key][k] = (lp_tr, th, lp_new)
-    old = model["heldout_loglik"][k]
-    model["fold_log_evidence"][k] = log_evidence(lp_tr, th)
-    model["heldout_loglik"][k] = model["log_evidence"] - model["fold_log_evidence"][k]
-    changed.append({"unit": held.id, "start_from": start, "log_prob_gain": lp_new - lp_k,
-                    "heldout_loglik_before": old, "heldout_loglik_after": model["heldout_loglik"][k]})
-    log(f"screen {key}: fold {held.id} refitted from {start}, training log-posterior "
-        f"+{lp_new - lp_k:.1f}, held-out {old:.1f} -> {model['heldout_loglik'][k]:.1f} nats")
 
 
 def rank(levels: list[dict]) -> list[dict]:

@@ -256,28 +256,33 @@ def find_map(logpost: LogPosterior, scales: RecordScales, rng: np.random.Generat
     return th_map, lp_map, info
 
 
+def heuristic_starts(sp, records, scales: RecordScales) -> list[np.ndarray]:
+    """The heuristic start (heuristic_values; a parameter it does not set at the middle of its
+    prior box) and its deterministic variants along the directions in which wrong local optima
+    were found on short BRFD records (v_s at its upper bound with an extreme sigma0 and a long
+    take-up d3): a small Stribeck velocity, a short take-up, a stiffer or softer bristle. The
+    first starts of find_map, and starts of the discrepancy screening's candidate fits."""
+    h0 = heuristic_values(sp, records, scales)
+
+    def point(h):
+        return _clip_in(sp, sp.to_theta({n: h.get(n, float(np.exp(0.5 * (sp.lo[i] + sp.hi[i])))
+                                                  if sp.log[i] else 0.5 * (sp.lo[i] + sp.hi[i]))
+                                         for i, n in enumerate(sp.names)}))
+    starts = [point(h0)]
+    for change in ({"v_s": 0.1}, {"d3": 0.2}, {"sigma0": 10.0}, {"sigma0": 0.1},
+                   {"v_s": 0.1, "d3": 0.2}):
+        if all(n in sp.names for n in change):
+            starts.append(point({**h0, **{n: h0[n] * f for n, f in change.items()}}))
+    return starts
+
+
 def _multi_start(logpost, scales, rng, n_random, n_prior, n_draws, log, n_global):
     """find_map's search (module docstring, steps 1-2): (best point, its log-posterior, info)."""
     sp = logpost.space
     coarse = coarsened(logpost)              # cheap: the local starts' least squares
     ranked = coarsened(logpost, simulate="kept")   # faithful: ranking and the global search
-    h0 = heuristic_values(sp, logpost.records, scales)
-    th_h = _clip_in(sp, sp.to_theta({n: h0.get(n, np.exp(0.5 * (sp.lo[i] + sp.hi[i])) if sp.log[i]
-                                          else 0.5 * (sp.lo[i] + sp.hi[i]))
-                                     for i, n in enumerate(sp.names)}))
-    starts = [th_h]
-    # deterministic variants of the heuristic along the directions in which wrong local optima
-    # were found on short BRFD records (v_s at its upper bound with an extreme sigma0 and a
-    # long take-up d3): a small Stribeck velocity, a short take-up, a stiffer or softer bristle
-    for change in ({"v_s": 0.1}, {"d3": 0.2}, {"sigma0": 10.0}, {"sigma0": 0.1},
-                   {"v_s": 0.1, "d3": 0.2}):
-        h = dict(h0)
-        for n, f in change.items():
-            h[n] = h0[n] * f
-        if all(n in sp.names for n in change):
-            starts.append(_clip_in(sp, sp.to_theta({n: h.get(n, float(np.exp(0.5 * (sp.lo[i] + sp.hi[i])))
-                                                           if sp.log[i] else 0.5 * (sp.lo[i] + sp.hi[i]))
-                                                    for i, n in enumerate(sp.names)})))
+    starts = heuristic_starts(sp, logpost.records, scales)
+    th_h = starts[0]
     width = sp.hi - sp.lo
     for _ in range(n_random):
         starts.append(_clip_in(sp, th_h + rng.normal(0, 0.08, sp.ndim) * width))
@@ -315,7 +320,8 @@ def _multi_start(logpost, scales, rng, n_random, n_prior, n_draws, log, n_global
         f"on the ranking copies, best first: "
         f"{[round(v, 1) for v in ranked_lps[:4]]}); refined best {best_lp:.6g}")
     return best, best_lp, {"start": "search", "starts_log_prob_ranked": ranked_lps,
-                           "heuristic": h0, "global_generations": generations}
+                           "heuristic": heuristic_values(sp, logpost.records, scales),
+                           "global_generations": generations}
 
 
 def polish(logpost: LogPosterior, theta: np.ndarray, lp: float) -> tuple[np.ndarray, float]:
