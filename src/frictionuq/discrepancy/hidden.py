@@ -211,15 +211,15 @@ def hidden_campaign(out_dir, device: str, effect: str | None, seed: int,
         effects[also] = draw_effect(also, np.random.default_rng([seed, 4243]), amp, v_max, e_ref)
     noise_effects = [e for e in effects if e in NOISE_EFFECTS]
     sd = NOISE_REL_SD * fc
-    burst_rng = None
+    burst_rng, model_effects = None, effects
     if chatter_form == "bursts" and "chatter" in effects:
         burst_rng = np.random.default_rng([seed, 4244])
         effects["chatter"] = draw_bursts(burst_rng.uniform, sd)
         noise_effects.remove("chatter")
+        model_effects = {e: q for e, q in effects.items() if e != "chatter"}
         if effect == "chatter":
             eff_p = effects["chatter"]
     tests, toml = [], []
-    model_effects = {e: q for e, q in effects.items() if not (burst_rng is not None and e == "chatter")}
     (out / "tests").mkdir(parents=True, exist_ok=True)
     for tid, kind, f, t, x in drives:
         n = t.size

@@ -71,8 +71,9 @@ def nested_recheck(out: dict, full_fits: dict, fold_fits: dict, folds, log,
     stage 1; `changed` lists the starts that raised it there), and here on the training
     tests of each fold where a candidate gains more than min_unit_gain (screen.MIN_UNIT_GAIN) on
     the held-out unit. The baseline takes a new point only if it reaches a higher log-posterior
-    on the data it is fitted to, never by its held-out score, so the check cannot favour the baseline on the held-out unit; a gain that came from the
-    baseline's optimiser stopping in a poorer local optimum, and not from the effect, disappears.
+    on the data it is fitted to, never by its held-out score, so the check cannot favour the
+    baseline on the held-out unit; a gain that came from the baseline's optimiser stopping in a
+    poorer local optimum, and not from the effect, disappears.
     Seen on a clean BRFD campaign simulated at the raw rate (seed 7): the baseline's multi-start
     search ended 400 nats below the generating values (v_s at its upper bound, sigma0 at its lower
     one), reversal_hump and rate_strengthening reached them, and rate_strengthening gained 191

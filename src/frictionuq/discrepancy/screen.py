@@ -80,7 +80,7 @@ from ..campaign import Record
 from ..infer.compare import elpd_total
 from ..infer.fit import FitConfig
 from ..infer.likelihood import LogPosterior
-from ..infer.optimize import coarsened, find_map, global_start, heuristic_starts
+from ..infer.optimize import coarsened, find_map, global_start, heuristic_starts, heuristic_values
 from . import fits as F
 from .predictive import log_evidence
 from .recheck import cross_refit, nested_recheck, set_evidence
@@ -157,7 +157,7 @@ def _candidate_map(logpost, base: dict, rng, scales) -> tuple[np.ndarray, float]
         th = th0.copy()
         th[eff_idx] = d[eff_idx]
         starts.append(th)
-    starts += heuristic_starts(sp, logpost.records, scales)
+    starts += heuristic_starts(sp, heuristic_values(sp, logpost.records, scales))
     first = []
     for s0 in starts:
         th = F.white_fit(coarse, s0, rounds=2, max_nfev=50)

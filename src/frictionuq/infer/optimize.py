@@ -256,13 +256,13 @@ def find_map(logpost: LogPosterior, scales: RecordScales, rng: np.random.Generat
     return th_map, lp_map, info
 
 
-def heuristic_starts(sp, records, scales: RecordScales) -> list[np.ndarray]:
+def heuristic_starts(sp, h0: dict) -> list[np.ndarray]:
     """The heuristic start (heuristic_values; a parameter it does not set at the middle of its
     prior box) and its deterministic variants along the directions in which wrong local optima
     were found on short BRFD records (v_s at its upper bound with an extreme sigma0 and a long
     take-up d3): a small Stribeck velocity, a short take-up, a stiffer or softer bristle. The
-    first starts of find_map, and starts of the discrepancy screening's candidate fits."""
-    h0 = heuristic_values(sp, records, scales)
+    first starts of find_map, and starts of the discrepancy screening's candidate fits.
+    h0: heuristic_values of the space and its records."""
 
     def point(h):
         return _clip_in(sp, sp.to_theta({n: h.get(n, float(np.exp(0.5 * (sp.lo[i] + sp.hi[i])))
@@ -281,7 +281,8 @@ def _multi_start(logpost, scales, rng, n_random, n_prior, n_draws, log, n_global
     sp = logpost.space
     coarse = coarsened(logpost)              # cheap: the local starts' least squares
     ranked = coarsened(logpost, simulate="kept")   # faithful: ranking and the global search
-    starts = heuristic_starts(sp, logpost.records, scales)
+    h0 = heuristic_values(sp, logpost.records, scales)
+    starts = heuristic_starts(sp, h0)
     th_h = starts[0]
     width = sp.hi - sp.lo
     for _ in range(n_random):
@@ -320,8 +321,7 @@ def _multi_start(logpost, scales, rng, n_random, n_prior, n_draws, log, n_global
         f"on the ranking copies, best first: "
         f"{[round(v, 1) for v in ranked_lps[:4]]}); refined best {best_lp:.6g}")
     return best, best_lp, {"start": "search", "starts_log_prob_ranked": ranked_lps,
-                           "heuristic": heuristic_values(sp, logpost.records, scales),
-                           "global_generations": generations}
+                           "heuristic": h0, "global_generations": generations}
 
 
 def polish(logpost: LogPosterior, theta: np.ndarray, lp: float) -> tuple[np.ndarray, float]:
