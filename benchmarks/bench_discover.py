@@ -5,7 +5,7 @@ wall time, then the hit rate and false-alarm count, in one run.
 
     .venv/bin/python benchmarks/bench_discover.py [--full] [--refit] [--seeds 1 2] [--devices brfd mfd]
         [--effects none eccentricity ...] [--extra-effects takeup_overshoot] [--simulate-at raw|kept]
-        [--also chatter --max-effects 2] [--chatter-form bursts]
+        [--also chatter --max-effects 2] [--chatter-form bursts] [--jobs 2]
         [--verbose]
 
 --full: full-length records (two harmonics of ~5,000 samples and a Kobe replay, the issue's speed
@@ -30,6 +30,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--full", action="store_true")
     ap.add_argument("--refit", action="store_true")
+    ap.add_argument("--jobs", type=int, default=1, help="discover's processes for the screening's "
+                    "fits (the CLI's default is every core; 1 here, to run campaigns side by side)")
     ap.add_argument("--seeds", type=int, nargs="+", default=[11])
     ap.add_argument("--devices", nargs="+", default=["brfd", "mfd"])
     ap.add_argument("--effects", nargs="+",
@@ -73,7 +75,8 @@ def main(argv=None) -> int:
                                                            {"ramp_start": a.ramp_start}))
                     t0 = time.perf_counter()
                     doc = discover(d / "c", d / "out", cfg, seed=1, refit=a.refit,
-                                   extra_effects=tuple(a.extra_effects), max_effects=a.max_effects)
+                                   extra_effects=tuple(a.extra_effects), max_effects=a.max_effects,
+                                   jobs=a.jobs)
                     secs = time.perf_counter() - t0
                     hidden = sorted(ans["effects"])
                     row = {"device": dev, "hidden": "+".join(hidden) or "none",

@@ -315,3 +315,35 @@ def test_candidate_search_leaves_the_baselines_basin(tmp_path):
           f"{lp_truth - base['log_prob']:+.1f} nats over the baseline's MAP")
     assert lp_truth - base["log_prob"] > 1000.0
     assert lp_c >= lp_truth - 5.0, (lp_c - base["log_prob"], lp_truth - base["log_prob"])
+
+
+def test_screening_on_two_processes_gives_the_serial_results(tmp_path):
+    """screen_level with workers.Workers(2) (the candidates' MAPs, the cross refits and the
+    held-out scoring side by side in two spawned processes) gives the serial run's numbers bit for
+    bit: every fit is deterministic given its inputs. A hidden thermal_fade, two candidates, so
+    that each of the three maps has two items (thermal_fade is scored held out with the
+    baseline). Compared: every MAP, log-posterior and held-out score. And jobs < 1 is refused
+    before any work."""
+    from frictionuq.discrepancy.discover import discover
+    from frictionuq.discrepancy.workers import Workers
+    from frictionuq.errors import InputError
+    from frictionuq.infer.fit import FitConfig
+    hidden_campaign(tmp_path / "c", "mfd", "thermal_fade", seed=11, short=True)
+    tests = list(load_campaign(tmp_path / "c").tests)[:2]      # two harmonics: two folds
+    cfg = FitConfig(samples_per_cycle=50, simulate_at="kept")   # cheap: the claim holds on any input
+    eff = ["thermal_fade", "eccentricity"]
+
+    def numbers(lv):
+        return {k: {f: m[f] for f in ("log_prob_map", "map", "rmse_map", "heldout_loglik",
+                                      "fold_log_evidence", "log_evidence") if f in m}
+                for k, m in lv["models"].items()}
+
+    serial = screen.screen_level(tests, cfg, 1, effects=eff)
+    with Workers(2) as w:
+        both = screen.screen_level(tests, cfg, 1, effects=eff, workers=w)
+        assert w._pool is not None            # the maps did run in the processes
+    assert "heldout_loglik" in serial["models"]["thermal_fade"]     # scored: the third map ran
+    assert numbers(both) == numbers(serial)
+    with pytest.raises(InputError, match="jobs"):
+        discover(tmp_path / "c", tmp_path / "out", jobs=0)
+    assert not (tmp_path / "out").exists()

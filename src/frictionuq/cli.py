@@ -129,7 +129,7 @@ def _cmd_discover(a):
                     kinds=tuple(a.kind) if a.kind else None, drive_lowpass=a.drive_lowpass)
     d = discover(a.campaign, a.out, cfg, seed=a.seed, refit=not a.no_refit,
                  extra_effects=tuple(a.extra_effect or ()), max_effects=a.max_effects,
-                 log=lambda m: print(m, file=sys.stderr))
+                 jobs=a.jobs, log=lambda m: print(m, file=sys.stderr))
     print(f"{'candidate':<20}{'ELPD gain (nats)':>18}{'SE':>10}{'MAP gain (nats)':>17}"
           f"{'RMSE after (N)':>16}")
     for c in d["candidates"]:
@@ -326,6 +326,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--max-effects", type=int, default=1, metavar="N",
                    help="name up to N effects, one per round, each screened against the model "
                         "with the ones named before (default 1)")
+    from .discrepancy.workers import default_jobs
+    s.add_argument("--jobs", "-j", type=int, default=default_jobs(), metavar="N",
+                   help="processes for the screening's fits (default: every core, here "
+                        f"{default_jobs()}); the results do not depend on it")
     _add_selection(s, "cap on stored sampler steps of the refit")
     s.set_defaults(func=_cmd_discover)
 

@@ -40,6 +40,7 @@ from .. import atomic
 from ..errors import InputError
 from ..infer.fit import FitConfig, FitSpec, jsonable, plan, run_fit
 from . import fits, screen
+from .workers import Workers
 
 
 def _noise_scale(entry: dict, gain_rms: dict | None = None) -> float | None:
@@ -137,7 +138,8 @@ def _candidate_rows(ranked) -> list[dict]:
              "n_params": r["n_params"]} for r in ranked]
 
 
-def _screen_rounds(specs, cfg, seed, effects, extra_effects, max_effects, log) -> list[dict]:
+def _screen_rounds(specs, cfg, seed, effects, extra_effects, max_effects, log,
+                   workers=None) -> list[dict]:
     """Forward selection, one effect per round: round 1 screens the candidates against the plain
     3-stage model; while a round names an effect and fewer than max_effects are named, the next
     round takes the model with the effects named so far as its baseline (started from the named
@@ -155,7 +157,8 @@ def _screen_rounds(specs, cfg, seed, effects, extra_effects, max_effects, log) -
             log(f"{tag}level {s.id}: screening {len(s.tests)} test(s)"
                 + (f" against 3-stage + {' + '.join(named_so_far)}" if named_so_far else ""))
             lv = screen.screen_level(s.tests, cfg, seed, effects=cands, base_effects=named_so_far,
-                                     base_start=start, log=lambda m, i=s.id: log(f"{tag}{i}: {m}"))
+                                     base_start=start, log=lambda m, i=s.id: log(f"{tag}{i}: {m}"),
+                                     workers=workers)
             lv["id"] = s.id
             levels.append(lv)
         ranked = screen.rank(levels) if len(levels[0]["models"]) > 1 else []
@@ -171,12 +174,16 @@ def _screen_rounds(specs, cfg, seed, effects, extra_effects, max_effects, log) -
 
 def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: int = 1,
              effects=None, extra_effects=(), refit: bool = True, diagnostics: bool = True,
-             max_effects: int = 1, log=None) -> dict:
+             max_effects: int = 1, jobs: int = 1, log=None) -> dict:
     """Run the workflow on a campaign; returns (and writes) the discrepancy document.
     effects: the candidates (default: screen.candidates, the spec's library); extra_effects:
     effects beyond the spec (params.BEYOND_SPEC) to screen as well. max_effects: how many
     effects may be named, one per round (_screen_rounds); named_effect is the first,
     named_effects all of them, and the refit and the gap are those of the model with all.
+    jobs: processes for the screening's fits (workers.Workers; the CLI's default is every core;
+    1 here, as inside a pipeline task, which has its own processes); the results do not depend
+    on it. With jobs > 1 the workers are spawned: a script calling this must do so under
+    `if __name__ == "__main__":` (Python's rule for spawned processes).
 
     Decimated records are simulated as the config says (raw rate by default, as the fits)."""
     from .. import __version__
@@ -190,6 +197,8 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
                          "held-out screening; use ar1 (default) or iid")
     if not (isinstance(max_effects, int) and max_effects >= 1):
         raise InputError(f"discover: max_effects must be an integer >= 1, got {max_effects!r}")
+    if not (isinstance(jobs, int) and jobs >= 1):
+        raise InputError(f"discover: jobs must be an integer >= 1, got {jobs!r}")
     from .. import params as P
     bad = [e for e in extra_effects if e not in P.BEYOND_SPEC]
     if bad:
@@ -201,7 +210,8 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out}: exists and is not a folder")
     specs = plan(camp, "applied", cfg)
-    rounds = _screen_rounds(specs, cfg, seed, effects, extra_effects, max_effects, log)
+    with Workers(jobs) as workers:
+        rounds = _screen_rounds(specs, cfg, seed, effects, extra_effects, max_effects, log, workers)
     named_all = [r["named"] for r in rounds if r["named"] != "none"]
     named = named_all[0] if named_all else "none"
     levels = rounds[0]["levels"]

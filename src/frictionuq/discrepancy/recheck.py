@@ -7,18 +7,29 @@ from . import fits as F
 from .predictive import log_evidence
 
 
-def set_evidence(model: dict, lp_joint, th_joint) -> None:
-    """The model's held-out scores (in place): log p(y_k | the other units) = log Z(all units) -
-    log Z(the others) (discrepancy.predictive)."""
-    model["log_evidence"] = log_evidence(lp_joint, th_joint)
+def set_evidence(model: dict, log_z: float) -> None:
+    """The model's held-out scores (in place) from log Z(all units) = log_z and its
+    "fold_log_evidence": log p(y_k | the other units) = log Z(all units) - log Z(the others)
+    (discrepancy.predictive)."""
+    model["log_evidence"] = log_z
     model["heldout_loglik"] = [model["log_evidence"] - f for f in model["fold_log_evidence"]]
 
 
-def cross_refit(fitted: dict, log) -> tuple[list[dict], dict[str, list[dict]]]:
+def _refit(args) -> tuple:
+    """(F.refit from theta0, its log-posterior): a task of workers.Workers.map."""
+    lp, theta0 = args
+    th = F.refit(lp, theta0)
+    return th, F.log_prob(lp, th)
+
+
+def cross_refit(fitted: dict, log, pmap=map) -> tuple[list[dict], dict[str, list[dict]]]:
     """The MAPs on all units, each side refitted from the other's, before stage 1 (in place on
     `fitted`): the baseline from each candidate's MAP without the effect's parameters, then each
     candidate from the baseline's resulting MAP with its effect at the default. Returns (the
-    starts that raised the baseline, {candidate: the starts that raised it}).
+    starts that raised the baseline, {candidate: the starts that raised it}). pmap: how the
+    refits of each side are mapped (workers.Workers.map runs them side by side; each is
+    independent of the others, and the baseline takes the first best in the candidates' order,
+    as one after the other).
 
     Every candidate contains the baseline (its effect at the neutral value), and its search
     starts from more points than the baseline's, so a candidate can end in a better optimum of
@@ -34,24 +45,22 @@ def cross_refit(fitted: dict, log) -> tuple[list[dict], dict[str, list[dict]]]:
     hidden takeup_overshoot campaign (BRFD, seed 13) fell below the stage against the raised
     baseline and rose to +151.7 nats only in the refit after it, unscored."""
     lp_all, th_b, lp_b, secs = fitted["baseline"]
+    names = [n for n in fitted if n != "baseline"]
+    res = pmap(_refit, [(lp_all, F.theta_in(lp_all.space, fitted[n][0].space, fitted[n][1]))
+                        for n in names])
     changed = []
-    for name, (lp_c, th_c, _, _) in fitted.items():
-        if name == "baseline":
-            continue
-        th = F.refit(lp_all, F.theta_in(lp_all.space, lp_c.space, th_c))
-        lp_new = F.log_prob(lp_all, th)
+    for name, (th, lp_new) in zip(names, list(res)):
         if lp_new > lp_b + 1e-6:
             changed.append({"unit": "all tests", "start_from": name, "log_prob_gain": lp_new - lp_b})
             log(f"screen baseline: MAP refitted from {name}'s, log-posterior {lp_b:.1f} -> {lp_new:.1f}")
             th_b, lp_b = th, lp_new
     fitted["baseline"] = [lp_all, th_b, lp_b, secs]
+    res = pmap(_refit, [(fitted[n][0], F.theta_in(fitted[n][0].space, lp_all.space, th_b))
+                        for n in names])
     moved = {}
-    for name, (lp_c, th_c, lp_cmap, secs_c) in fitted.items():
-        if name == "baseline":
-            continue
+    for name, (th, lp_new) in zip(names, list(res)):
+        lp_c, _, lp_cmap, secs_c = fitted[name]
         moved[name] = []
-        th = F.refit(lp_c, F.theta_in(lp_c.space, lp_all.space, th_b))
-        lp_new = F.log_prob(lp_c, th)
         if lp_new > lp_cmap + 1e-6:
             moved[name].append({"unit": "all tests", "start_from": "the baseline's MAP",
                                 "log_prob_gain": lp_new - lp_cmap})

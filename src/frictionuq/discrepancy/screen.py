@@ -19,6 +19,10 @@ each applied-force level of a campaign:
    log-posterior). A level with a single test is split into 3 contiguous blocks of whole
    cycles, held out in turn.
 
+The candidates' MAP searches (step 1), the cross refits and each scored model's fold fits
+(step 3) do not depend on each other: with a workers.Workers of two processes they run side by
+side (discover's jobs; the CLI uses every core), with the serial run's results.
+
 The gain of a candidate on held-out unit k is g_k = ll_k(candidate) - ll_k(baseline) (nats);
 ELPD gain = sum_k g_k with SE = sqrt(K var(g_k)) (Vehtari et al. 2017), summed over levels.
 
@@ -84,6 +88,7 @@ from ..infer.optimize import coarsened, find_map, global_start, heuristic_starts
 from . import fits as F
 from .predictive import log_evidence
 from .recheck import cross_refit, nested_recheck, set_evidence
+from .workers import Workers
 
 MIN_GAIN = 20.0
 MIN_UNIT_GAIN = 5.0
@@ -184,41 +189,70 @@ def heldout_units(level_tests) -> list[tuple[list, object]]:
     return [(units[:k] + units[k + 1:], units[k]) for k in range(len(units))]
 
 
+def _fit_candidate(args) -> tuple[np.ndarray, float, float]:
+    """(MAP, its log-posterior, seconds) of one candidate (a task of workers.Workers.map): its
+    starts from its own generator, seeded by the level's seed and its number of effects."""
+    lp_all, base, seed, n_eff, scales = args
+    t0 = time.perf_counter()
+    th, lp = _candidate_map(lp_all, base, np.random.default_rng([seed, 17, n_eff]), scales)
+    return th, lp, time.perf_counter() - t0
+
+
+def _score_model(args) -> dict:
+    """One model's held-out scoring (a task of workers.Workers.map): the MAP on all held-out units
+    together (F.joint_fit), each fold's training MAP warm-started from it (F.refit), and the
+    Laplace evidences of both (predictive.log_evidence)."""
+    lp_all, th_all, recs, trains = args
+    t0 = time.perf_counter()
+    lp_joint, th_joint = F.joint_fit(lp_all, th_all, recs)
+    fits = []
+    for train in trains:
+        lp_tr = LogPosterior(lp_all.space, [recs[i] for i in train])
+        th_k = F.refit(lp_tr, th_joint)
+        fits.append((th_k, F.log_prob(lp_tr, th_k), log_evidence(lp_tr, th_k)))
+    return {"th_joint": th_joint, "log_z": log_evidence(lp_joint, th_joint), "folds": fits,
+            "seconds": time.perf_counter() - t0}
+
+
 def screen_level(level_tests, cfg: FitConfig, seed: int, effects=None, log=None,
-                 base_effects=(), base_start: dict | None = None) -> dict:
+                 base_effects=(), base_start: dict | None = None, workers=None) -> dict:
     """Held-out log-likelihoods of the baseline and every candidate on one level.
 
     base_effects: effects the baseline already has (a later round of discover: the effects
     named before); each candidate is then the baseline plus one more. base_start: {name: value}
     of the baseline's MAP found before (the previous round's MAP of the model now taken as the
-    baseline), polished instead of a new multi-start search."""
+    baseline), polished instead of a new multi-start search. workers: a workers.Workers whose
+    processes run the candidates' fits side by side (default: one after the other, here); the
+    results are the same."""
     log = log or (lambda m: None)
+    pool = workers or Workers(1)
     base_effects = tuple(base_effects)
     effects = [e for e in (effects if effects is not None else candidates(level_tests))
                if e not in base_effects]
     folds = heldout_units(level_tests)
     out = {"tests": [t.id for t in level_tests], "units": [h.id for _, h in folds], "models": {}}
-    base_theta = {}
     fold_fits = {}        # model -> [(training log-posterior, theta, its log-posterior)] per fold
     full_fits = {}        # model -> (log-posterior on all tests, MAP, held-out units' records)
     fitted = {}           # model -> [log-posterior on all tests, MAP, its log-posterior, seconds]
-    for name in [None] + effects:      # the MAP on all units, the baseline's first
-        t0 = time.perf_counter()
-        eff = base_effects + (() if name is None else (name,))
-        lp_all, scales = F.logpost_for(level_tests, eff, cfg)
-        rng = np.random.default_rng([seed, 17, len(eff)])
-        if name is None:
-            start = None if base_start is None else lp_all.space.to_theta(
-                {n: base_start[n] for n in lp_all.space.names})
-            th_all, lpmap, _ = find_map(lp_all, scales, rng, n_random=1, n_prior=1, start=start)
-            base_theta = {"space": lp_all.space, "all": th_all, "log_prob": lpmap}
-        else:        # warm starts: the baseline MAP with the effect at its default and at N_EFFECT_STARTS prior draws
-            th_all, lpmap = _candidate_map(lp_all, base_theta, rng, scales)
-        fitted["baseline" if name is None else name] = [lp_all, th_all, lpmap, time.perf_counter() - t0]
-    changed, moved = cross_refit(fitted, log)
+    t0 = time.perf_counter()      # the MAP on all units: the baseline's first
+    lp_all, scales = F.logpost_for(level_tests, base_effects, cfg)
+    start = None if base_start is None else lp_all.space.to_theta(
+        {n: base_start[n] for n in lp_all.space.names})
+    th_all, lpmap, _ = find_map(lp_all, scales, np.random.default_rng([seed, 17, len(base_effects)]),
+                                n_random=1, n_prior=1, start=start)
+    base_theta = {"space": lp_all.space, "all": th_all, "log_prob": lpmap}
+    fitted["baseline"] = [lp_all, th_all, lpmap, time.perf_counter() - t0]
+    # each candidate from the baseline's MAP (its effect at the default and at prior draws), the
+    # heuristic starts and a global search (_candidate_map), side by side in the workers
+    lps = {name: F.logpost_for(level_tests, base_effects + (name,), cfg) for name in effects}
+    res = pool.map(_fit_candidate, [(lps[n][0], base_theta, seed, len(base_effects) + 1, lps[n][1])
+                                    for n in effects])
+    for name, (th_c, lp_c, secs) in zip(effects, res):
+        fitted[name] = [lps[name][0], th_c, lp_c, secs]
+    changed, moved = cross_refit(fitted, log, pool.map)
     lp_base = fitted["baseline"][2]
+    scored = []
     for key, (lp_all, th_all, lpmap, secs) in fitted.items():
-        t0 = time.perf_counter() - secs
         if key != "baseline" and lpmap - lp_base <= MIN_GAIN:
             # stage 1 of the screen: no better in-sample fit, no held-out scoring (rule (e))
             full_fits[key] = (lp_all, th_all, None)
@@ -229,23 +263,23 @@ def screen_level(level_tests, cfg: FitConfig, seed: int, effects=None, log=None,
                 f"on all units (<= {MIN_GAIN:g}): not scored held out, MAP RMSE "
                 f"{out['models'][key]['rmse_map']:.4g} N ({secs:.1f} s)")
             continue
-        recs = F.unit_records(lp_all, folds, cfg)
-        lp_joint, th_joint = F.joint_fit(lp_all, th_all, recs)
-        fits = []
-        for train, held in folds:
-            lp_tr = LogPosterior(lp_all.space, [recs[t.id] for t in train])
-            th_k = F.refit(lp_tr, th_joint)
-            fits.append((lp_tr, th_k, F.log_prob(lp_tr, th_k)))
-        fold_fits[key] = fits
-        full_fits[key] = (lp_all, th_all, recs)
+        scored.append(key)
+    recs = {key: F.unit_records(fitted[key][0], folds, cfg) for key in scored}
+    trains = [[t.id for t in train] for train, _ in folds]
+    res = pool.map(_score_model, [(fitted[k][0], fitted[k][1], recs[k], trains) for k in scored])
+    for key, r in zip(scored, res):
+        lp_all, th_all, lpmap, secs = fitted[key]
+        fold_fits[key] = [(LogPosterior(lp_all.space, [recs[key][i] for i in train]), th_k, lp_k)
+                          for train, (th_k, lp_k, _) in zip(trains, r["folds"])]
+        full_fits[key] = (lp_all, th_all, recs[key])
         out["models"][key] = {"log_prob_map": lpmap, "map": F.values(lp_all.space, th_all),
                               "rmse_map": F.rmse(lp_all, th_all),
-                              "fold_log_evidence": [log_evidence(lp, th) for lp, th, _ in fits]}
-        set_evidence(out["models"][key], lp_joint, th_joint)
-        out["models"][key]["seconds"] = time.perf_counter() - t0
+                              "fold_log_evidence": [z for _, _, z in r["folds"]]}
+        set_evidence(out["models"][key], r["log_z"])
+        out["models"][key]["seconds"] = secs + r["seconds"]
         ll = out["models"][key]["heldout_loglik"]
         log(f"screen {key}: held-out log-likelihood {sum(ll):.1f} nats over {len(ll)} unit(s), "
-            f"MAP RMSE {out['models'][key]['rmse_map']:.4g} N ({time.perf_counter() - t0:.1f} s)")
+            f"MAP RMSE {out['models'][key]['rmse_map']:.4g} N ({secs + r['seconds']:.1f} s)")
     nested_recheck(out, full_fits, fold_fits, folds, log, changed, moved, MIN_UNIT_GAIN)
     return out
 
