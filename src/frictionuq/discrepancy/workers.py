@@ -2,8 +2,9 @@
 
 The discrepancy screening (screen.py) fits every candidate effect from the baseline's MAP, refits
 each side from the other's solutions and fits each scored model's leave-one-out folds. Those fits
-do not depend on each other, and most of them run on the coarsened records, where the simulator's
-own threads (numba prange over parameter rows) do not start: the screening used one core of two.
+do not depend on each other. Run one after the other they already keep part of the second core
+busy (the simulator's numba threads start on the full-rate fits, not on the coarsened ones): two
+processes cut the screening of the item-6 campaign by 14 %, not by half (docs/log-discrepancy.md).
 `Workers(jobs).map(fn, items)` runs them in `jobs` processes (spawn, not fork: numba's threading
 layer and fork do not mix; one numba thread each) and returns the results in the order of
 `items`. Every fit is deterministic given its inputs (each candidate's random starts come from its
@@ -12,7 +13,8 @@ jobs=1 (the library's default, and inside a pipeline task, which has its own pro
 runs here, in order, with no process started.
 
 The functions mapped must be importable (module level) and their arguments picklable: the
-log-posteriors (records, prior box) travel whole; a worker's log lines come back with its result.
+log-posteriors (records, prior box) travel whole; workers do not log, the caller logs from the
+results. The pipeline's own process pool (pipeline.runner) runs whole tasks, this one fits.
 """
 from __future__ import annotations
 
