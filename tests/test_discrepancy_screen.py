@@ -13,13 +13,13 @@ from frictionuq.discrepancy import screen
 from frictionuq.discrepancy.hidden import hidden_campaign
 
 
-def _row(effect, gains, n_params=2, map_gain=None):
+def _row(effect, gains, n_params=2, map_gain=None, rmse=(1.0, 2.0)):
     import numpy as np
     from frictionuq.infer.compare import elpd_total
     t = elpd_total(gains)
     return {"effect": effect, "elpd_gain": t["elpd"], "elpd_gain_se": t["se"],
             "gain_per_unit": list(gains), "min_unit_gain": float(np.min(gains)),
-            "n_params": n_params, "rmse_map": 1.0,
+            "n_params": n_params, "rmse_map": rmse[0], "rmse_baseline": rmse[1],
             "map_gain": float(np.sum(gains)) if map_gain is None else map_gain}
 
 
@@ -62,6 +62,20 @@ def test_decision_rule():
     name, why = screen.decide([_row("eccentricity", [10.2, 23.6, -2.2], 3, map_gain=3.6)])
     assert name == "none" and "MAP +3.6" in why
     assert screen.decide([_row("eccentricity", [10.2, 23.6, -2.2], 3, map_gain=40.0)])[0] == "eccentricity"
+    # rule (f): a force effect whose MAP raises the RMSE (the real 36 lb sines of dataset 2 at 2
+    # and 1 Hz: the AR(1) likelihood's gain from a smoother residual) is not named, nor is the
+    # weaker candidate behind it (c); the same gains with a lower RMSE: named
+    at = _row("applied_tracking", [161.7, 39.2], 1, map_gain=367.7, rmse=(3660.8, 3172.4))
+    ecc = _row("eccentricity", [120.0, 46.0], 3, map_gain=178.9, rmse=(2766.3, 3172.4))
+    name, why = screen.decide([at, ecc])
+    said = "does not lower the RMSE (3172 N, the baseline's, -> 3661 N)"
+    assert name == "none" and said in why and "weaker" in why
+    name, why = screen.decide([at])
+    assert name == "none" and said in why
+    assert screen.decide([{**at, "rmse_map": 3100.0}, ecc])[0] == "applied_tracking"
+    assert screen.decide([{**at, "rmse_map": 3172.4}])[0] == "none"     # not lowered
+    # a noise effect changes the noise, not the force: its RMSE is not asked to fall
+    assert screen.decide([{**at, "effect": "chatter"}])[0] == "chatter"
 
 
 def test_stage_one_candidates_are_listed_but_never_named():
@@ -74,6 +88,11 @@ def test_stage_one_candidates_are_listed_but_never_named():
     levels = [{"models": {"baseline": model(-1000.0, [-300.0, -400.0, -300.0]),
                           "eccentricity": {**model(-990.0), "screened_out": True},
                           "thermal_fade": model(-700.0, [-200.0, -300.0, -250.0])}}]
+    ranked = screen.rank(levels)
+    assert ranked[0]["rmse_baseline"] == 1.0 and ranked[0]["rmse_map"] == 1.0
+    name, why = screen.decide(ranked, levels)     # rule (f): its RMSE is the baseline's
+    assert name == "none" and "does not lower the RMSE (1 N, the baseline's, -> 1 N)" in why
+    levels[0]["models"]["thermal_fade"]["rmse_map"] = 0.9
     ranked = screen.rank(levels)
     assert [r["effect"] for r in ranked] == ["thermal_fade", "eccentricity"]
     assert ranked[1]["elpd_gain"] is None and ranked[1]["map_gain"] == 10.0
