@@ -329,14 +329,18 @@ def _raises_rmse(r) -> bool:
     return r["effect"] not in P.NOISE_EFFECTS and not r["rmse_map"] < r["rmse_baseline"]
 
 
-def _passes(r) -> bool:
+def _passes_likelihood(r) -> bool:
+    """Rules (a), (b) and (e): the held-out and in-sample gains."""
     g = np.asarray(r["gain_per_unit"], float)
     k = g.size
     need = k if k <= 2 else k - 1
     se_ok = k < MIN_UNITS_FOR_SE or r["elpd_gain"] > 2 * r["elpd_gain_se"]
     return (int(np.sum(g > MIN_UNIT_GAIN)) >= need and float(g.min()) > -MAX_UNIT_LOSS
-            and r["elpd_gain"] > MIN_GAIN and se_ok and r["map_gain"] > MIN_GAIN
-            and not _raises_rmse(r))
+            and r["elpd_gain"] > MIN_GAIN and se_ok and r["map_gain"] > MIN_GAIN)
+
+
+def _passes(r) -> bool:
+    return _passes_likelihood(r) and not _raises_rmse(r)
 
 
 def _rmse_note(r) -> str:
@@ -368,10 +372,14 @@ def decide(ranked: list[dict], levels: list[dict] | None = None) -> tuple[str, s
     if not ok:
         b = ranked[0]
         g = ", ".join(f"{v:.1f}" for v in b["gain_per_unit"])
+        if _passes_likelihood(b):        # only rule (f) fails
+            return "none", (f"the best candidate, {b['effect']} (gain {b['elpd_gain']:.1f} +- "
+                            f"{b['elpd_gain_se']:.1f} nats held out, per unit {g}; MAP "
+                            f"{b['map_gain']:+.1f}), passes the likelihood conditions, but"
+                            + _rmse_note(b)[1:])
         return "none", (f"no candidate improves the held-out units by > {MIN_UNIT_GAIN:g} nats (all "
                         f"but one of 3 or more), loses none by > {MAX_UNIT_LOSS:g} and gains > "
-                        f"{MIN_GAIN:g} nats in total, held out and in its MAP on all units, "
-                        "and, a force effect, lowers the RMSE (best: "
+                        f"{MIN_GAIN:g} nats in total, held out and in its MAP on all units (best: "
                         f"{b['effect']}, gain {b['elpd_gain']:.1f} +- {b['elpd_gain_se']:.1f}, per "
                         f"unit {g}; MAP {b['map_gain']:+.1f}){_rmse_note(b)}")
     best = ok[0]
