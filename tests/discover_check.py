@@ -39,6 +39,8 @@ def check_discover(tmp_path, device, effect, seed, refit, also=None, max_effects
     doc = json.loads((tmp_path / "out" / "discrepancy.json").read_text())
     assert doc["named_effect"] == (d["named_effects"] or ["none"])[0] and doc["package_version"]
     assert doc["seed"] == 1 and doc["max_effects"] == max_effects
+    # each candidate row carries the RMSE of its round's baseline (rule (f) compares with it)
+    assert all(c["rmse_before"] == doc["rmse_before"] for c in doc["candidates"])
     # a round after the last hidden effect (if max_effects allows one) said none
     assert len(doc["rounds"]) == min(len(hidden) + 1, max_effects), doc["rounds"]
     assert {c["effect"] for c in doc["candidates"]} >= {"reversal_hump", "eccentricity", "thermal_fade",

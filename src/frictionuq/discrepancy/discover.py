@@ -20,7 +20,8 @@
    DIR/refit/.
 
 rmse_before is the baseline's RMSE at its MAP (offset removed) on the fit's records;
-candidate rmse_after values are at each candidate's MAP; the final rmse_after is the refit's
+candidate rmse_after values are at each candidate's MAP, beside rmse_before, the RMSE of its
+round's baseline (the one rule (f) of screen.py compares with); the final rmse_after is the refit's
 posterior-median prediction. noise_scale is the marginal sd of the measurement noise the refit
 (or, with "none", the baseline) estimates: sigma_noise (a marginal sd), median over the tests;
 with a noise effect (chatter) each test's sigma_noise times the rms of its gain g over the test,
@@ -133,7 +134,8 @@ def _gap(level_tests, cfg, base_map: dict, named: list, named_map: dict, seed: i
 
 def _candidate_rows(ranked) -> list[dict]:
     return [{"effect": r["effect"], "elpd_gain": r["elpd_gain"], "elpd_gain_se": r["elpd_gain_se"],
-             "rmse_after": r["rmse_map"], "gain_per_unit": r["gain_per_unit"],
+             "rmse_before": r["rmse_baseline"], "rmse_after": r["rmse_map"],
+             "gain_per_unit": r["gain_per_unit"],
              "map_gain": r["map_gain"], "screened_out": r["screened_out"],
              "n_params": r["n_params"]} for r in ranked]
 
