@@ -5,6 +5,7 @@ files, so that pytest-xdist (--dist loadfile) runs the slowest cases on both wor
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 
@@ -122,4 +123,5 @@ def check_discover(tmp_path, device, effect, seed, refit, also=None, max_effects
         html = page.read_text()
         assert f"Named effect: {effect}" in html and "loops" in html and "RMSE at its MAP (N)" in html
         assert "MAP gain on all units (nats)" in html
+        assert re.search(r"the baseline.{1,6}s RMSE at its MAP \d", html)   # the table's caption
         assert html.count("data:image/png;base64") >= 2 * len(ans["tests"]) + len(ans["tests"])

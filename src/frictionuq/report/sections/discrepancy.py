@@ -55,6 +55,8 @@ def build(ctx, folder=None) -> list[dict]:
 
 def _candidates(cands: list[dict], caption: str) -> dict:
     """The table of one round's candidates."""
+    if cands and cands[0].get("rmse_before") is not None:     # the RMSE rule (f) compares with
+        caption += f"; the baseline's RMSE at its MAP {num(cands[0]['rmse_before'])} N"
     rows = [(c["effect"], "not scored (MAP gain too small)" if c.get("screened_out") else num(c["elpd_gain"]),
              num(c["elpd_gain_se"]), ", ".join(num(g) for g in c["gain_per_unit"]) or num(None),
              num(c["map_gain"]) if "map_gain" in c else "-", num(c["rmse_after"]), c["n_params"])
