@@ -48,9 +48,9 @@ Decision rule (guards against false positives): the best candidate by ELPD gain 
       density on the others);
   (b) its total gain exceeds MIN_GAIN = 20 nats and, with 5 or more held-out units, 2 SE (with
       K < 5 units the SE has K - 1 degrees of freedom and says little; (a) is then the guard);
-  (c) it is the candidate with the largest gain: when the best explanation fails (a), (b), (e) or (f), a
-      weaker one that passes is not named (seen with a hidden thermal_fade: fade +225 nats but one
-      replay made worse by 22, reversal_hump +29 passing: a wrong name);
+  (c) it is the candidate with the largest gain: when the best explanation fails (a), (b), (e)
+      or (f), a weaker one that passes is not named (seen with a hidden thermal_fade: fade +225
+      nats but one replay made worse by 22, reversal_hump +29 passing: a wrong name);
   (d) with 5 or more held-out units, among candidates passing (a)-(b) whose gain is within 2 SE
       of the best (paired), the one with the fewest parameters is named (with 3 units the paired
       SE is so loose that applied_tracking, +129 nats, counted as "within 2 SE" of +1147).
@@ -343,11 +343,11 @@ def _passes(r) -> bool:
     return _passes_likelihood(r) and not _raises_rmse(r)
 
 
-def _rmse_note(r) -> str:
-    """The clause of a reason that says a candidate fails rule (f), or ""."""
+def _rmse_note(r, sep: str = "; ") -> str:
+    """The clause of a reason that says a candidate fails rule (f) (after sep), or ""."""
     if not _raises_rmse(r):
         return ""
-    return (f"; its MAP does not lower the RMSE ({r['rmse_baseline']:.4g} N, the baseline's, -> "
+    return (f"{sep}its MAP does not lower the RMSE ({r['rmse_baseline']:.4g} N, the baseline's, -> "
             f"{r['rmse_map']:.4g} N): the likelihood gain is a smoother residual, not a closer force")
 
 
@@ -367,8 +367,9 @@ def decide(ranked: list[dict], levels: list[dict] | None = None) -> tuple[str, s
         b, w = ranked[0], ok[0]
         return "none", (f"the best candidate, {b['effect']} (gain {b['elpd_gain']:.1f} nats, per unit "
                         + ", ".join(f"{v:.1f}" for v in b["gain_per_unit"]) + "), does not pass the "
-                        f"rule{_rmse_note(b)}; {w['effect']} passes with a smaller gain ({w['elpd_gain']:.1f}) but "
-                        "naming a weaker explanation than the best one would be a guess")
+                        f"rule{_rmse_note(b)}; {w['effect']} passes with a smaller gain "
+                        f"({w['elpd_gain']:.1f}) but naming a weaker explanation than the best one "
+                        "would be a guess")
     if not ok:
         b = ranked[0]
         g = ", ".join(f"{v:.1f}" for v in b["gain_per_unit"])
@@ -376,7 +377,7 @@ def decide(ranked: list[dict], levels: list[dict] | None = None) -> tuple[str, s
             return "none", (f"the best candidate, {b['effect']} (gain {b['elpd_gain']:.1f} +- "
                             f"{b['elpd_gain_se']:.1f} nats held out, per unit {g}; MAP "
                             f"{b['map_gain']:+.1f}), passes the likelihood conditions, but"
-                            + _rmse_note(b)[1:])
+                            + _rmse_note(b, sep=" "))
         return "none", (f"no candidate improves the held-out units by > {MIN_UNIT_GAIN:g} nats (all "
                         f"but one of 3 or more), loses none by > {MAX_UNIT_LOSS:g} and gains > "
                         f"{MIN_GAIN:g} nats in total, held out and in its MAP on all units (best: "
