@@ -32,7 +32,7 @@ def _cmd_twin(a):
 def _cmd_fit(a):
     from .infer.fit import FitConfig, fit_campaign
     from .infer.sampler import SamplerConfig
-    samp = SamplerConfig(**({"max_steps": a.max_steps} if a.max_steps else {}))
+    samp = SamplerConfig(**({"max_steps": a.max_steps} if a.max_steps is not None else {}))
     cfg = FitConfig(model=a.model, effects=tuple(a.effect or ()), likelihood=a.likelihood,
                     seed=a.seed, sampler=samp, tests=tuple(a.test) if a.test else None,
                     kinds=tuple(a.kind) if a.kind else None, simulate_at=a.simulate_at,
@@ -108,7 +108,7 @@ def _cmd_compare(a):
     from .infer.compare import compare_campaign, format_table
     from .infer.fit import FitConfig
     from .infer.sampler import SamplerConfig
-    samp = SamplerConfig(**({"max_steps": a.max_steps} if a.max_steps else {}))
+    samp = SamplerConfig(**({"max_steps": a.max_steps} if a.max_steps is not None else {}))
     models = list(dict.fromkeys(a.model or ["three_stage", "lugre"]))
     cfgs = {m: FitConfig(model=m, likelihood=a.likelihood, seed=a.seed, sampler=samp) for m in models}
     r = compare_campaign(a.campaign, a.out, cfgs, kinds=a.kind, tests=a.test, seed=a.seed,
@@ -124,7 +124,7 @@ def _cmd_discover(a):
     from .discrepancy.discover import discover
     from .infer.fit import FitConfig
     from .infer.sampler import SamplerConfig
-    samp = SamplerConfig(**({"max_steps": a.max_steps} if a.max_steps else {}))
+    samp = SamplerConfig(**({"max_steps": a.max_steps} if a.max_steps is not None else {}))
     cfg = FitConfig(likelihood=a.likelihood, sampler=samp, tests=tuple(a.test) if a.test else None,
                     kinds=tuple(a.kind) if a.kind else None, drive_lowpass=a.drive_lowpass)
     d = discover(a.campaign, a.out, cfg, seed=a.seed, refit=not a.no_refit,

@@ -20,3 +20,12 @@ def where(path, row: int | None = None, key: str | None = None) -> str:
     if key is not None:
         s += f", key {key}"
     return s
+
+
+def check_seed(seed, who: str) -> int:
+    """seed as an int, or an InputError naming `who`: the random generators (numpy's) take
+    non-negative integers, and a bad seed must be refused before any work starts."""
+    from numbers import Integral
+    if isinstance(seed, bool) or not isinstance(seed, Integral) or seed < 0:
+        raise InputError(f"{who}: seed must be a non-negative integer, got {seed!r}")
+    return int(seed)

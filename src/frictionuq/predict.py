@@ -45,7 +45,7 @@ import numpy as np
 import pandas as pd
 
 from . import atomic, params as P
-from .errors import InputError
+from .errors import InputError, check_seed
 from .fitdir import FitPosterior, campaign_applied_unit, fitted_levels, load_posterior, load_summary
 
 REL_TOL = 1e-6
@@ -302,6 +302,7 @@ def predict(fit_dir, applied_si: float, t, x, *, eps: float = 0.0, n_draws: int 
     `fit_drive_lowpass(summary)` for a measured input); the bands keep the given x."""
     if isinstance(n_draws, bool) or not isinstance(n_draws, (int, np.integer)) or n_draws < 2:
         raise InputError(f"number of draws must be an integer >= 2, got {n_draws!r}")
+    check_seed(seed, "predict")
     if not (math.isfinite(applied_si) and applied_si >= 0):
         raise InputError(f"applied force must be a finite number >= 0, got {applied_si!r}")
     t, x = np.asarray(t, float), np.asarray(x, float)
@@ -341,6 +342,7 @@ def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied
     fit_dir, out_dir = Path(fit_dir), Path(out_dir)
     if (input_csv is None) == (harmonic is None):
         raise InputError("give exactly one input: a displacement CSV or a harmonic (amplitude, frequency)")
+    check_seed(seed, "predict")
     summary = load_summary(fit_dir)
     atomic.check_replaceable(fit_dir, out_dir, "prediction.json", "fit", "a prediction folder")
     unit, unit_src = (applied_unit, "given") if applied_unit else campaign_applied_unit(fit_dir, summary)

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import atomic
-from ..errors import InputError
+from ..errors import InputError, check_seed
 from ..infer.fit import FitConfig, FitSpec, jsonable, plan, run_fit
 from . import fits, screen
 from .workers import Workers
@@ -191,6 +191,7 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
     from .. import __version__
     from ..campaign import load_campaign
     log = log or (lambda m: None)
+    check_seed(seed, "discover")
     cfg = replace(config or FitConfig(), seed=seed)  # recorded in discrepancy.json
     if cfg.effects:
         raise InputError("discover: the baseline is the plain 3-stage model; do not give effects")

@@ -75,7 +75,7 @@ import numpy as np
 from scipy.special import logsumexp
 
 from .. import atomic, params as P
-from ..errors import InputError
+from ..errors import InputError, check_seed
 
 from .fit import FitConfig, FitSpec, jsonable, plan, prepare
 from .likelihood import LogPosterior, records_from_tests
@@ -197,6 +197,7 @@ def check_configs(configs: dict) -> dict:
     for name, cfg in configs.items():
         if not isinstance(cfg, FitConfig):
             raise InputError(f"compare: configuration {name!r} is not a FitConfig")
+        check_seed(cfg.seed, f"compare: model {name!r}")
         try:
             P.check_effects({e: {} for e in cfg.effects}, cfg.model)
         except ValueError as e:
@@ -340,7 +341,7 @@ def compare_campaign(campaign_path, out_dir, configs: dict[str, FitConfig] | Non
     configs = check_configs(dict(configs) if configs else default_configs())
     if offset not in OFFSET_MODES:
         raise InputError(f"compare: offset must be one of {OFFSET_MODES}, got {offset!r}")
-    seed = int(next(iter(configs.values())).seed if seed is None else seed)
+    seed = check_seed(next(iter(configs.values())).seed if seed is None else seed, "compare")
     camp = load_campaign(campaign_path)
     kinds = tuple(kinds) if kinds else None
     tests = tuple(tests) if tests else None

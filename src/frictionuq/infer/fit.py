@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import atomic, params as P
-from ..errors import InputError
+from ..errors import InputError, check_seed
 from ..units import from_si
 from . import drivefilter
 from .likelihood import SIMULATE_AT, LogPosterior, records_from_tests
@@ -91,6 +91,7 @@ def _fmt_applied(value_si: float, unit: str) -> str:
 def plan(campaign, by: str = "applied", config: FitConfig | None = None) -> list[FitSpec]:
     """The fits of a campaign: one per applied force (default) or one per test."""
     config = config or FitConfig()
+    check_seed(config.seed, "fit")
     try:    # unknown effects, or effects the model cannot carry: refused before any work
         P.check_effects({e: {} for e in config.effects}, config.model)
     except ValueError as e:

@@ -43,7 +43,7 @@ import numpy as np
 from scipy.special import logsumexp
 
 from .. import atomic, params as P
-from ..errors import InputError
+from ..errors import InputError, check_seed
 
 FORCE_DEPENDENT = ("fc_fwd", "fc_bwd", "fs_fwd", "fs_bwd", "sigma0")
 FAMILIES = ("linear", "threshold", "saturating")
@@ -202,6 +202,7 @@ def fit_law(fit_dir, family: str = "auto", seed: int = 1, compare: bool = True, 
     """Fit the force-dependence law on a `fit --by applied` folder and write FIT_DIR/law.json."""
     from .. import __version__
     log = log or (lambda m: None)
+    check_seed(seed, "law")
     if family != "auto" and family not in FAMILIES:
         raise InputError(f"--family must be auto or one of {', '.join(FAMILIES)}, got {family!r}")
     levels, summary = level_draws(fit_dir)

@@ -52,17 +52,20 @@ until the chain passes the convergence criteria.
 """
 from __future__ import annotations
 
+import math
 import os
 import sys
 import time
 import warnings
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
+from numbers import Integral, Real
 from pathlib import Path
 
 import emcee
 import numpy as np
 
 from .. import azadapter
+from ..errors import InputError
 from .likelihood import N_STATS, LogPosterior, UnboundedPosterior
 from .optimize import find_map, gauss_newton_cov
 from .proposal import IndependenceMove, Proposal, proposal_change
@@ -92,6 +95,23 @@ class SamplerConfig:
     independence: bool = True         # add the independence move fitted to the burn-in
     thin_output: int | None = None    # default: about tau/4
     progress: bool | None = None      # default: on a terminal
+
+    def __post_init__(self):
+        """Refuse a setting no run can use (InputError naming it), at construction: from the
+        CLI (--max-steps), a workflow's [fit.sampler] table or Python alike."""
+        for f in fields(self):
+            v, typ = getattr(self, f.name), str(f.type)
+            if v is None and "None" in typ or typ.startswith("bool"):
+                continue
+            if typ.startswith("int"):
+                low = 0 if f.name.startswith("n_") else 1
+                if isinstance(v, bool) or not isinstance(v, Integral) or v < low:
+                    raise InputError(f"sampler: {f.name} must be an integer >= {low}, got {v!r}")
+            elif (isinstance(v, bool) or not isinstance(v, Real) or not math.isfinite(v)
+                  or not v > 0):
+                raise InputError(f"sampler: {f.name} must be a finite number > 0, got {v!r}")
+        if not self.discard_fraction < 1:
+            raise InputError(f"sampler: discard_fraction must be < 1, got {self.discard_fraction!r}")
 
     def to_json(self) -> dict:
         return asdict(self)
