@@ -54,7 +54,9 @@ def _edit(P, **changes):
 @pytest.mark.parametrize("edit,fragments", [
     (dict(fc_fwdd=1.0), ["P.json", "unknown parameter 'fc_fwdd'"]),
     (dict(sigma0=None), ["P.json", "missing parameter 'sigma0'"]),
-    (dict(v_s=-1.0), ["P.json", "'v_s'", "outside its physical bounds"]),
+    (dict(v_s=-1.0), ["P.json", "'v_s'", "-1 m/s is outside its physical bounds"]),
+    (dict(effects={"thermal_fade": {"kappa": 2.0, "e_fade": 100.0}}),
+     ["P.json", "'kappa': 2 is outside its physical bounds [0, 0.999]"]),   # no unit "1"
     (dict(k2="stiff"), ["P.json", "key k2", "expected a number"]),
     (dict(effects={"hump": {}}), ["P.json", "unknown effect 'hump'"]),
     (dict(effects={"reversal_hump": {"a_hmp": 1}}), ["P.json", "no parameter 'a_hmp'"]),

@@ -153,8 +153,9 @@ def check_value(name: str, value) -> float:
     if not math.isfinite(v):
         raise ValueError(f"parameter {name!r}: {v} is not finite")
     if not (p.lower <= v <= p.upper):
-        raise ValueError(f"parameter {name!r}: {v:g} {p.unit} is outside its physical bounds "
-                         f"[{p.lower:g}, {p.upper:g}] {p.unit}")
+        u = "" if p.unit == "1" else f" {p.unit}"      # a dimensionless value shows no unit
+        raise ValueError(f"parameter {name!r}: {v:g}{u} is outside its physical bounds "
+                         f"[{p.lower:g}, {p.upper:g}]{u}")
     return v
 
 
