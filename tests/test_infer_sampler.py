@@ -68,11 +68,11 @@ def test_identifiability_flags_posteriors_at_a_prior_bound():
 def test_an_unreadable_stored_chain_is_started_afresh(tmp_path):
     """A chain file left unreadable (a process killed inside an HDF5 write) is not resumed and
     does not fail the fit: it is replaced, and the log says why."""
-    from frictionuq.infer.sampler import _open_backend
+    from frictionuq.infer.storage import open_backend
     p = tmp_path / "chain.h5"
     p.write_bytes(b"\x89HDF\r\n\x1a\n" + b"\x00" * 64)     # an HDF5 signature and nothing more
     msgs = []
-    be, done = _open_backend(p, 8, 3, resume=True, log=msgs.append)
+    be, done = open_backend(p, 8, 3, resume=True, log=msgs.append)
     assert done == 0 and be.iteration == 0
     assert msgs and "unreadable" in msgs[0] and "starting afresh" in msgs[0]
 

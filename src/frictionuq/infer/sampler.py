@@ -45,14 +45,13 @@ until the chain passes the convergence criteria.
   tau, max tau changed by less than `tau_rtol` since the previous check, and every parameter has
   R-hat <= `r_hat_max` and ESS >= `ess_min`; or at `max_steps` (then the fit is reported as not
   converged).
-* Storage: emcee's HDF5 backend (in u coordinates), written every step: an interrupted run
-  resumes from its last step (random state included) with `resume=True`.
+* Storage (storage.py): emcee's HDF5 backend (in u coordinates), written every step: an
+  interrupted run resumes from its last step (random state included) with `resume=True`.
 * Reproducibility: emcee copies NumPy's global random state at construction, so the sampler's
   own state is seeded explicitly from `seed`.
 """
 from __future__ import annotations
 
-import math
 import os
 import sys
 import time
@@ -69,6 +68,7 @@ from ..errors import InputError
 from .likelihood import N_STATS, LogPosterior, UnboundedPosterior
 from .optimize import find_map, gauss_newton_cov
 from .proposal import IndependenceMove, Proposal, proposal_change
+from .storage import load_proposal, open_backend, store_proposal
 from .priors import RecordScales
 
 
@@ -107,9 +107,9 @@ class SamplerConfig:
                 low = 0 if f.name.startswith("n_") else 1
                 if isinstance(v, bool) or not isinstance(v, Integral) or v < low:
                     raise InputError(f"sampler: {f.name} must be an integer >= {low}, got {v!r}")
-            elif (isinstance(v, bool) or not isinstance(v, Real) or not math.isfinite(v)
-                  or not v > 0):
-                raise InputError(f"sampler: {f.name} must be a finite number > 0, got {v!r}")
+            elif isinstance(v, bool) or not isinstance(v, Real) or not v > 0:   # NaN fails too
+                raise InputError(f"sampler: {f.name} must be a number > 0 (inf: no limit), "
+                                 f"got {v!r}")
         if not self.discard_fraction < 1:
             raise InputError(f"sampler: discard_fraction must be < 1, got {self.discard_fraction!r}")
 
@@ -223,95 +223,6 @@ def _moves(cfg: SamplerConfig, proposal=None):
             (emcee.moves.DESnookerMove(), 0.1)]
 
 
-class _Flushing:
-    """Context manager over an open h5py file: flushes on exit instead of closing."""
-
-    def __init__(self, f):
-        self.f = f
-
-    def __enter__(self):
-        return self.f
-
-    def __exit__(self, *exc):
-        self.f.flush()
-        return False
-
-
-class OpenHDFBackend(emcee.backends.HDFBackend):
-    """emcee's HDF5 backend with the file kept open during a run: emcee opens and closes the
-    file on every step (about 3 ms a step, an eighth of a twin fit's time); here each step is
-    written and flushed to the open file, so an interruption still loses no finished step."""
-
-    _handle = None
-
-    def open(self, mode="r"):
-        if self._handle is not None:
-            return _Flushing(self._handle)
-        return super().open(mode)
-
-    def keep_open(self):
-        if self._handle is None:
-            import h5py
-            self._handle = h5py.File(self.filename, "a")
-
-    def close(self):
-        if self._handle is not None:
-            self._handle.close()
-            self._handle = None
-
-
-COORDS = ("frictionuq unbounded logit-of-box coordinates v2 (independence proposal v2, Johnson SU "
-          "marginals, in attrs); "
-          "blobs v3: per-record log-likelihood, then per-record residual statistics")
-
-
-def _open_backend(backend_path, nw, ndim, resume, log=None):
-    """(backend, steps already stored). A stored chain is resumed only when it was written in the
-    same coordinates (attribute `coordinates` of the backend's group), with the same shape, and
-    every stored array reads back: a process killed in the middle of an HDF5 write can leave a
-    file whose metadata opens but whose data does not, and such a file is started afresh."""
-    if backend_path is None:
-        return None, 0
-    backend_path = Path(backend_path)
-    backend_path.parent.mkdir(parents=True, exist_ok=True)
-    if backend_path.exists() and resume:
-        try:
-            be = OpenHDFBackend(str(backend_path))
-            with be.open() as f:
-                coords = f[be.name].attrs.get("coordinates", "")
-            if be.initialized and be.shape == (nw, ndim) and be.iteration > 0 and coords == COORDS:
-                be.get_chain(), be.get_log_prob(), be.get_blobs(), be.get_last_sample()
-                _load_proposal(be)
-                return be, int(be.iteration)
-        except Exception as e:       # unreadable / corrupted file: start again
-            if log is not None:
-                log(f"stored chain {backend_path.name} unreadable ({type(e).__name__}: "
-                    f"{' '.join(str(e).split())[:120]}): starting afresh")
-    if backend_path.exists():
-        backend_path.unlink()
-    be = OpenHDFBackend(str(backend_path))
-    be.reset(nw, ndim)
-    with be.open("a") as f:
-        f[be.name].attrs["coordinates"] = COORDS
-    return be, 0
-
-
-def _store_proposal(backend, proposal):
-    if backend is None or proposal is None:
-        return
-    with backend.open("a") as f:
-        for k, v in proposal.to_attrs().items():
-            f[backend.name].attrs[k] = v
-
-
-def _load_proposal(backend):
-    with backend.open() as f:
-        a = f[backend.name].attrs
-        if "proposal_marginals" not in a:
-            return None
-        return Proposal.from_attrs(a)
-
-
 def check(chain: np.ndarray, cfg: SamplerConfig) -> dict:
     """Convergence statistics of a kept chain (steps, walkers, ndim)."""
     tau = _tau(chain)
@@ -373,7 +284,7 @@ def sample(logpost: LogPosterior, scales: RecordScales, seed: int,
     t0 = time.perf_counter()
     rng = np.random.default_rng(seed)
     target = UnboundedPosterior(logpost, stats=True)
-    backend, resumed = _open_backend(backend_path, nw, ndim, resume, log)
+    backend, resumed = open_backend(backend_path, nw, ndim, resume, log)
 
     theta_map, lp_map, map_info = find_map(logpost, scales, rng, cfg.n_random_starts,
                                            cfg.n_prior_starts, log=log, n_global=cfg.n_global_starts,
@@ -389,9 +300,9 @@ def sample(logpost: LogPosterior, scales: RecordScales, seed: int,
         state, proposal, burn_in_steps = burn_in(target, state, cfg, seed, rng, log)
 
     if resumed:      # the stored run's proposal is kept in the backend's attributes
-        proposal = _load_proposal(backend)
+        proposal = load_proposal(backend)
     else:
-        _store_proposal(backend, proposal)
+        store_proposal(backend, proposal)
     sampler = emcee.EnsembleSampler(nw, ndim, target, vectorize=True, moves=_moves(cfg, proposal),
                                     backend=backend)
     if not resumed:
