@@ -29,3 +29,12 @@ def check_seed(seed, who: str) -> int:
     if isinstance(seed, bool) or not isinstance(seed, Integral) or seed < 0:
         raise InputError(f"{who}: seed must be a non-negative integer, got {seed!r}")
     return int(seed)
+
+
+def check_draws(n, who: str | None = None) -> int:
+    """n as an int, or an InputError: a predictive band needs at least 2 posterior draws."""
+    from numbers import Integral
+    if isinstance(n, bool) or not isinstance(n, Integral) or n < 2:
+        raise InputError(f"{who + ': ' if who else ''}number of draws must be an integer >= 2, "
+                         f"got {n!r}")
+    return int(n)

@@ -45,7 +45,7 @@ import numpy as np
 import pandas as pd
 
 from . import atomic, params as P
-from .errors import InputError, check_seed
+from .errors import InputError, check_draws, check_seed
 from .fitdir import FitPosterior, campaign_applied_unit, fitted_levels, load_posterior, load_summary
 
 REL_TOL = 1e-6
@@ -300,8 +300,7 @@ def predict(fit_dir, applied_si: float, t, x, *, eps: float = 0.0, n_draws: int 
     applied force `applied_si` (SI). samples_per_cycle: set for a generated harmonic.
     drive_lowpass: the model runs on x low-passed like the fit's records (infer.drivefilter;
     `fit_drive_lowpass(summary)` for a measured input); the bands keep the given x."""
-    if isinstance(n_draws, bool) or not isinstance(n_draws, (int, np.integer)) or n_draws < 2:
-        raise InputError(f"number of draws must be an integer >= 2, got {n_draws!r}")
+    check_draws(n_draws)
     check_seed(seed, "predict")
     if not (math.isfinite(applied_si) and applied_si >= 0):
         raise InputError(f"applied force must be a finite number >= 0, got {applied_si!r}")

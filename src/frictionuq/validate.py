@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from . import atomic
-from .errors import InputError, check_seed
+from .errors import InputError, check_draws, check_seed
 
 
 def score(y: np.ndarray, bands) -> dict:
@@ -68,8 +68,7 @@ def validate(fit_dir, campaign_path, test_ids, out_dir, *, n_draws: int = 400, s
     from .predict import fit_drive_lowpass, predict
     log = log or (lambda m: None)
     check_seed(seed, "validate")
-    if isinstance(n_draws, bool) or not isinstance(n_draws, (int, np.integer)) or n_draws < 2:
-        raise InputError(f"validate: number of draws must be an integer >= 2, got {n_draws!r}")
+    check_draws(n_draws, "validate")
     camp = load_campaign(campaign_path)
     summary = load_summary(fit_dir)
     fitted_tests = {t for f in summary["fits"] for t in f.get("tests", [])}
