@@ -6,7 +6,7 @@ wall time, then the hit rate and false-alarm count, in one run.
     .venv/bin/python benchmarks/bench_discover.py [--full] [--refit] [--seeds 1 2] [--devices brfd mfd]
         [--effects none eccentricity ...] [--extra-effects takeup_overshoot] [--simulate-at raw|kept]
         [--also chatter --max-effects 2] [--chatter-form bursts] [--jobs 2]
-        [--verbose]
+        [--samples-per-cycle 400] [--verbose]
 
 --full: full-length records (two harmonics of ~5,000 samples and a Kobe replay, the issue's speed
 case); default: the short CI campaigns. --refit: also the MCMC refit with the named effect
@@ -58,10 +58,13 @@ def main(argv=None) -> int:
                     "(default) or decaying oscillations from each slip onset "
                     "(hidden.stick_slip_bursts; its parameters are not the model's, so --refit "
                     "checks none of them)")
+    ap.add_argument("--samples-per-cycle", type=float, default=100.0, help="the fits' decimation "
+                    "(FitConfig.samples_per_cycle): default 100, the CI tests' setting (the CLI's "
+                    "default is 400, which keeps every sample of these 100 Hz campaigns)")
     ap.add_argument("--verbose", action="store_true", help="also the top two candidates' gain per "
                     "held-out unit and the decision's reason")
     a = ap.parse_args(argv)
-    cfg = FitConfig(samples_per_cycle=100, simulate_at=a.simulate_at, sampler=SamplerConfig(max_steps=3000, progress=False))
+    cfg = FitConfig(samples_per_cycle=a.samples_per_cycle, simulate_at=a.simulate_at, sampler=SamplerConfig(max_steps=3000, progress=False))
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for dev in a.devices:

@@ -52,3 +52,31 @@ def test_cli_discover_on_a_clean_mfd_campaign(tmp_path, capsys):
     assert doc["named_effect"] == "none" and doc["config"]["samples_per_cycle"]
     html = (tmp_path / "out" / "report.html").read_text()
     assert "Named effect: none" in html and "frictionuq" in html and "seed 1" in html
+
+
+def test_discover_screens_a_noise_effect_on_records_that_keep_its_band(tmp_path, monkeypatch):
+    """With chatter among the candidates every model of the screening (the baseline included)
+    sees records kept at NOISE_EFFECT_MIN_KEPT_HZ or more (the same records for all, so their
+    scores compare); without it the decimation is the config's. The screening itself is
+    replaced by a stub that records what it was given."""
+    from frictionuq.discrepancy import discover as D
+    from frictionuq.infer.fit import FitConfig
+    from frictionuq.infer.likelihood import records_from_tests
+
+    class Stop(Exception):
+        pass
+
+    seen = {}
+
+    def stub(specs, cfg, *args, **kw):
+        seen["floor"] = cfg.min_kept_hz
+        seen["q"] = [r.q for r in records_from_tests(specs[0].tests, **cfg.record_options())]
+        raise Stop
+
+    monkeypatch.setattr(D, "_screen_rounds", stub)
+    hidden_campaign(tmp_path / "c", "brfd", None, seed=11, short=True)
+    for extra, floor, q in (((), None, [5, 2, 1]), (("chatter",), 50.0, [2, 2, 1])):
+        with pytest.raises(Stop):
+            D.discover(tmp_path / "c", tmp_path / "out", FitConfig(samples_per_cycle=100),
+                       extra_effects=extra)
+        assert seen == {"floor": floor, "q": q}, (extra, seen)

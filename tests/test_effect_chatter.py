@@ -227,3 +227,31 @@ def test_bands_cover_inside_and_outside_the_window(chatter_fit):
     assert win.sum() >= 60
     assert 0.88 <= inside[win].mean() <= 0.995
     assert 0.88 <= inside[out].mean() <= 0.995
+
+
+def test_records_with_chatter_keep_its_band():
+    """A noise effect in the model floors every record's kept rate at NOISE_EFFECT_MIN_KEPT_HZ
+    (FitConfig.record_options): at 100 samples per cycle a 0.2 Hz sine sampled at 100 Hz would
+    be kept at 20 Hz, and the anti-alias filter would take most of a 12 Hz ring after each slip
+    onset (hidden.stick_slip_bursts, the load path's chatter) out of it, while faster tests of
+    the same level keep theirs (the cause of 8 misses in 10 on the bursts set before the floor,
+    docs/log-discrepancy.md). Deterministic."""
+    from frictionuq.discrepancy.hidden import stick_slip_bursts
+    from frictionuq.infer.decimate import decimate
+    from frictionuq.infer.likelihood import NOISE_EFFECT_MIN_KEPT_HZ, records_from_tests
+    t = np.arange(2001) / 100.0
+    x = 0.0254 * np.sin(2 * np.pi * 0.2 * t)
+    ring = stick_slip_bursts(t, x, 0.003, {"f_osc": 12.3, "zeta_osc": 0.05, "amp_osc": 1000.0},
+                             np.random.default_rng(0))
+    test = NS(id="slow", record=NS(t=t, x=x, force=simulate(t, x, TRUTH) + ring, applied=None),
+              applied=267.0, kind="harmonic", frequency_hz=0.2)
+    kept = {}
+    for name, cfg in (("plain", FitConfig(samples_per_cycle=100)),
+                      ("chatter", FitConfig(samples_per_cycle=100, effects=("chatter",))),
+                      ("floor", FitConfig(samples_per_cycle=100, min_kept_hz=40.0))):
+        q = records_from_tests([test], **cfg.record_options())[0].q
+        kept[name] = (q, float(np.sqrt(np.mean(decimate(ring, q) ** 2)) / np.sqrt(np.mean(ring ** 2))))
+    assert NOISE_EFFECT_MIN_KEPT_HZ == 50.0
+    assert kept["plain"][0] == 5 and kept["plain"][1] < 0.4, kept     # mostly filtered out
+    assert kept["chatter"][0] == 2 and kept["chatter"][1] > 0.95, kept
+    assert kept["floor"][0] == 2, kept

@@ -125,3 +125,16 @@ def test_bad_simulate_at_is_refused():
     t = np.arange(100) / 100.0
     with pytest.raises(ValueError, match="simulate_at"):
         prepare_record("syn", t, np.sin(t), np.sin(t), q=1, simulate_at="fine")
+
+
+def test_kept_rate_floor():
+    """decimation_factor's min_kept_hz: the kept rate is at least that (a 0.2 Hz sine sampled at
+    100 Hz: q 5 at 100 samples per cycle, 2 with a 40 Hz floor, 1 with a 60 Hz one); a floor
+    that is not a positive number is refused."""
+    from frictionuq.infer.likelihood import decimation_factor
+    t = np.arange(2001) / 100.0
+    x = 0.0254 * np.sin(2 * np.pi * 0.2 * t)
+    assert [decimation_factor(t, x, 100, 0.2, f) for f in (None, 40.0, 60.0)] == [5, 2, 1]
+    for bad in (0.0, -5.0, float("nan")):
+        with pytest.raises(ValueError, match="min_kept_hz"):
+            decimation_factor(t, x, 100, 0.2, bad)

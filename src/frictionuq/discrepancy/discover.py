@@ -27,7 +27,10 @@ posterior-median prediction. noise_scale is the marginal sd of the measurement n
 with a noise effect (chatter) each test's sigma_noise times the rms of its gain g over the test,
 i.e. the rms of the fitted noise sd. Such an effect does not change the force, so it closes no
 RMSE; the gap it closes shows in the held-out score and in the bands; its diagnostics are
-those of the residual in units of its noise model (divided by g).
+those of the residual in units of its noise model (divided by g). With a noise effect among the
+candidates every model is screened on records kept at NOISE_EFFECT_MIN_KEPT_HZ or more
+(infer.likelihood: the anti-alias filter would otherwise take 10-15 Hz chatter out of the slow
+tests only).
 """
 from __future__ import annotations
 
@@ -40,6 +43,7 @@ import numpy as np
 from .. import atomic
 from ..errors import InputError, check_seed
 from ..infer.fit import FitConfig, FitSpec, jsonable, plan, run_fit
+from ..infer.likelihood import NOISE_EFFECT_MIN_KEPT_HZ
 from . import fits, screen
 from .workers import Workers
 
@@ -207,6 +211,9 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
     if bad:
         raise InputError(f"discover: extra effect {bad[0]!r} is not an effect beyond the spec's "
                          f"library; known: {', '.join(sorted(P.BEYOND_SPEC))}")
+    if (set(effects or ()) | set(extra_effects)) & P.NOISE_EFFECTS:
+        # every model of the comparison on the same records, kept at a rate that holds chatter
+        cfg = replace(cfg, min_kept_hz=max(cfg.min_kept_hz or 0.0, NOISE_EFFECT_MIN_KEPT_HZ))
     t0 = time.perf_counter()
     camp = load_campaign(campaign_path)
     out = Path(out_dir)

@@ -22,7 +22,7 @@ from .. import atomic, params as P
 from ..errors import InputError, check_seed
 from ..units import from_si
 from . import drivefilter
-from .likelihood import SIMULATE_AT, LogPosterior, records_from_tests
+from .likelihood import NOISE_EFFECT_MIN_KEPT_HZ, SIMULATE_AT, LogPosterior, records_from_tests
 from .priors import apply_overrides, default_priors, record_scales
 from .sampler import SamplerConfig, sample
 from .space import Space
@@ -37,6 +37,8 @@ class FitConfig:
     likelihood: str = "ar1"
     priors: dict = field(default_factory=dict)     # overrides; a number fixes the parameter
     samples_per_cycle: float = 400.0
+    # the kept rate's floor (Hz); with a noise effect at least NOISE_EFFECT_MIN_KEPT_HZ
+    min_kept_hz: float | None = None
     simulate_at: str = "raw"                       # "raw" or "kept" (infer.likelihood)
     eps: float | str = "auto"
     drive_lowpass: float | None = None             # infer.drivefilter; None: the raw displacement
@@ -52,9 +54,15 @@ class FitConfig:
         return d
 
     def record_options(self) -> dict:
-        """How each test's record is prepared (likelihood.records_from_tests keywords)."""
+        """How each test's record is prepared (likelihood.records_from_tests keywords). With a
+        noise effect (chatter) no record is kept at less than NOISE_EFFECT_MIN_KEPT_HZ: the
+        anti-alias filter would take the chatter out of the slow tests only."""
+        floor = self.min_kept_hz
+        if set(self.effects) & P.NOISE_EFFECTS:
+            floor = max(floor or 0.0, NOISE_EFFECT_MIN_KEPT_HZ)
         return {"samples_per_cycle": self.samples_per_cycle, "eps": self.eps,
-                "simulate_at": self.simulate_at, "drive_lowpass": self.drive_lowpass}
+                "simulate_at": self.simulate_at, "drive_lowpass": self.drive_lowpass,
+                "min_kept_hz": floor}
 
 
 @dataclass
