@@ -97,7 +97,7 @@ def dominant_frequency(t, x) -> tuple[float, float]:
 #: the lowest kept rate (Hz) of a record fitted with a noise effect (`chatter`), and of every
 #: record `discover` screens when it is a candidate. Chatter is the load path ringing at 10-15 Hz
 #: (the ARTS records); decimated below about three times that, the anti-alias filter removes it
-#: from the slow tests only (a hidden 12.3 Hz ring keeps 20 % of its rms at a 20 Hz kept rate,
+#: from the slow tests only (a hidden 12.3 Hz ring keeps 31 % of its rms at a 20 Hz kept rate,
 #: 15 % at 10 Hz, 99 % at 50 Hz), while the effect's window is shared by the tests of a level:
 #: fitted on the faster tests, it then predicts chatter the slow test's kept samples cannot hold
 #: (docs/log-discrepancy.md, 2026-11-27).
