@@ -270,3 +270,14 @@ def test_compare_refuses(tmp_path, capsys, extra, fragment):
     assert code == 2, err
     assert err.count("\n") == 1 and fragment in err and "Traceback" not in err, err
     assert not (out / "compare.json").exists()
+
+
+def test_models_are_scored_on_the_same_records():
+    """A configuration with a noise effect asks for records kept at 50 Hz or more
+    (FitConfig.record_options); check_configs gives every model that floor, so that the models'
+    held-out scores are on the same records; without one the floor stays off."""
+    from frictionuq.infer.compare import check_configs
+    both = check_configs({"3-stage": FitConfig(), "3-stage + chatter": FitConfig(effects=("chatter",))})
+    assert [c.record_options()["min_kept_hz"] for c in both.values()] == [50.0, 50.0]
+    plain = check_configs({"3-stage": FitConfig(), "lugre": FitConfig(model="lugre")})
+    assert [c.record_options()["min_kept_hz"] for c in plain.values()] == [None, None]

@@ -191,7 +191,9 @@ def _fit_record(res) -> dict:
 
 def check_configs(configs: dict) -> dict:
     """Validate {name: FitConfig}: known models, effects the model can carry, a known
-    likelihood. Raises InputError (one line)."""
+    likelihood. Raises InputError (one line). Returns the configurations with one kept-rate
+    floor for all (the highest any of them asks for, e.g. a noise effect's: FitConfig.
+    record_options), so that every model is scored on the same records."""
     if not configs:
         raise InputError("compare: no model configuration given")
     for name, cfg in configs.items():
@@ -205,7 +207,9 @@ def check_configs(configs: dict) -> dict:
         if cfg.likelihood not in ("iid", "ar1"):
             raise InputError(f"compare: model {name!r}: likelihood {cfg.likelihood!r} is not "
                              "supported by the held-out comparison; use ar1 (default) or iid")
-    return configs
+    floor = max((f for f in (c.record_options()["min_kept_hz"] for c in configs.values()) if f),
+                default=None)
+    return {name: replace(cfg, min_kept_hz=floor) for name, cfg in configs.items()}
 
 
 def compare_level(tests, configs: dict[str, FitConfig], seed: int, log=None, *,
@@ -215,7 +219,7 @@ def compare_level(tests, configs: dict[str, FitConfig], seed: int, log=None, *,
     {rmse, rmse_per_test, elpd, se, elpd_per_test, ...}}, "pairs": [...]}: see the module
     docstring. work_dir (optional): where the sampler keeps its HDF5 chains."""
     log = log or (lambda m: None)
-    check_configs(configs)
+    configs = check_configs(configs)
     if offset not in OFFSET_MODES:
         raise InputError(f"compare: offset must be one of {OFFSET_MODES}, got {offset!r}")
     tests = list(tests)
