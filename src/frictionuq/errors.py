@@ -2,6 +2,8 @@
 or key, and what is wrong; the CLI prints it and exits with code 2 (no traceback)."""
 from __future__ import annotations
 
+from numbers import Integral
+
 EXIT_BAD_INPUT = 2
 
 
@@ -25,7 +27,6 @@ def where(path, row: int | None = None, key: str | None = None) -> str:
 def check_seed(seed, who: str) -> int:
     """seed as an int, or an InputError naming `who`: the random generators (numpy's) take
     non-negative integers, and a bad seed must be refused before any work starts."""
-    from numbers import Integral
     if isinstance(seed, bool) or not isinstance(seed, Integral) or seed < 0:
         raise InputError(f"{who}: seed must be a non-negative integer, got {seed!r}")
     return int(seed)
@@ -33,7 +34,6 @@ def check_seed(seed, who: str) -> int:
 
 def check_draws(n, who: str | None = None) -> int:
     """n as an int, or an InputError: a predictive band needs at least 2 posterior draws."""
-    from numbers import Integral
     if isinstance(n, bool) or not isinstance(n, Integral) or n < 2:
         raise InputError(f"{who + ': ' if who else ''}number of draws must be an integer >= 2, "
                          f"got {n!r}")
