@@ -174,6 +174,28 @@ def test_kernel_matches_oracle_without_a_stage(seed, d2, d3):
         assert_matches(simulate(t, x, p, eff), oracle_simulate(t, x, p, eff))
 
 
+@pytest.mark.parametrize("ratio", [0.5, 5.0, 599.0, 601.0, 2000.0])
+@pytest.mark.parametrize("seed", range(2))
+def test_kernel_matches_oracle_on_both_sides_of_the_shared_exponential(seed, ratio):
+    """The blend's smooth steps come from one exponential exp(-s/w) while (d2 + d3)/w < 600 and
+    from their own functions beyond (kernel._blend_terms): both branches, and the small-s range
+    where tanh is taken from expm1, match the oracle. The record creeps out of each reversal
+    (steps of w/20 for the first 2 w) so that many samples sit at s < w/2."""
+    rng = np.random.default_rng(seed)
+    p = draw_params(rng)
+    p["d2"], p["d3"] = 0.7e-3, 0.3e-3
+    p["w"] = 1e-3 / ratio
+    span = p["d2"] + p["d3"] + 40 * p["w"] + 2e-3
+    creep = np.arange(1, 41) * p["w"] / 20
+    leg = np.concatenate([creep, np.linspace(creep[-1], span, 200)[1:]])
+    x = np.concatenate([[0.0], leg, span - leg, leg, span - leg])
+    t = np.arange(x.size) * 1e-3
+    for eff in (None, {"reversal_hump": draw_effect(rng, "reversal_hump", p)}):
+        F = simulate(t, x, p, eff)
+        assert np.all(np.isfinite(F))
+        assert_matches(F, oracle_simulate(t, x, p, eff))
+
+
 def test_kernel_matches_oracle_with_applied_clipped_to_zero():
     """applied_tracking clipping g at 0 for a stretch (no friction there: z = 0, F1 = sigma2 v)."""
     rng = np.random.default_rng(5)
