@@ -304,17 +304,35 @@ _BASE_MAP_BRFD_TO13 = {
     "sigma1": 22.892641854039663, "sigma2": 20251.52483181185, "k2": 272581.8177152359,
     "d2": 0.001495669454028814, "k3": 16236498.37892113, "d3": 0.002138912011927636,
     "w": 0.00020409277506732297, "force_offset": 190.28691076004847}
+#: the same campaign's baseline MAP on records kept at 50 Hz or more (the floor discover sets when
+#: chatter is a candidate), as find_map found it (rng [1, 17, 0], 2026-11-27): fs_fwd 33.1 kN
+#: against fc_fwd 24.5 kN, a static-friction peak standing in for the overshoot
+_BASE_MAP_BRFD_TO13_50HZ = {
+    "fc_fwd": 24496.92051, "fc_bwd": 15277.86158, "fs_fwd": 33070.84267, "fs_bwd": 16383.56036,
+    "v_s": 0.0009649220122, "sigma0": 15262952.03, "sigma1": 3620.826778, "sigma2": 2397.886634,
+    "k2": 54902.52522, "d2": 0.001489849158, "k3": 16069669.1, "d3": 0.0004767454237,
+    "w": 0.0002062244599, "force_offset": 89.42029533}
 
 
 @pytest.mark.slow
-def test_candidate_search_leaves_the_baselines_basin(tmp_path):
+@pytest.mark.parametrize("base_map, min_kept_hz", [(_BASE_MAP_BRFD_TO13, None),
+                                                   (_BASE_MAP_BRFD_TO13_50HZ, 50.0)],
+                         ids=["raw-decimation", "kept-at-50Hz"])
+def test_candidate_search_leaves_the_baselines_basin(tmp_path, base_map, min_kept_hz):
     """A candidate's MAP search (screen._candidate_map) starts from the baseline's MAP and also
     from find_map's heuristic starts: where the baseline bends to absorb a hidden effect, starts
-    from its MAP stay in its basin. On this campaign they ended 302 nats above the baseline's
-    MAP with the overshoot almost off (a_to_fwd 0.02 against 0.60), and discover named
-    reversal_hump; the fit from the generating values (least squares from them) is 1,560
-    above. The search must end within 5 nats of that fit (measured: 1,570.6, so 10.8 above it;
-    without the heuristic starts 302.2). Deterministic, about 20 s."""
+    from its MAP stay in its basin. The search must end within 5 nats of the fit from the
+    generating values (least squares from them), which is more than 900 nats above the
+    baseline's MAP. Two cases of one campaign:
+    - records decimated as the fits do (2026-11-26): the search ended 302 nats above the
+      baseline's MAP with the overshoot almost off (a_to_fwd 0.02 against 0.60) and discover
+      named reversal_hump; with the heuristic starts 1,570.6 (the generating values' fit 1,560);
+    - records kept at 50 Hz or more (2026-11-27): with the local starts ranked on their
+      coarsened copies, the best stayed at the baseline's MAP plus 0.0 with the effect off (the
+      refined starts ended 357-362 nats below it); ranked on the full records, +968.1 (the
+      generating values' fit +958.9).
+    Deterministic, about 20-30 s each."""
+    from dataclasses import replace
     from frictionuq import published as pub
     from frictionuq.discrepancy import fits as F
     from frictionuq.discrepancy.hidden import LEVEL
@@ -322,17 +340,19 @@ def test_candidate_search_leaves_the_baselines_basin(tmp_path):
     ans = hidden_campaign(tmp_path / "c", "brfd", "takeup_overshoot", seed=13, short=True)
     tests = list(load_campaign(tmp_path / "c").tests)
     cfg = FitConfig(samples_per_cycle=100, simulate_at="raw")
+    if min_kept_hz is not None:
+        cfg = replace(cfg, min_kept_hz=min_kept_hz)
     lp0, _ = F.logpost_for(tests, (), cfg)
-    th_b = lp0.space.to_theta(_BASE_MAP_BRFD_TO13)
+    th_b = lp0.space.to_theta(base_map)
     base = {"space": lp0.space, "all": th_b, "log_prob": F.log_prob(lp0, th_b)}
     lp1, scales = F.logpost_for(tests, ("takeup_overshoot",), cfg)
     _, lp_c = screen._candidate_map(lp1, base, np.random.default_rng([1, 17, 1]), scales)
     p = pub.published_params("brfd", LEVEL["brfd"])
-    v = {**_BASE_MAP_BRFD_TO13, **{n: p[n] for n in _BASE_MAP_BRFD_TO13 if n in p}, **ans["parameters"]}
+    v = {**base_map, **{n: p[n] for n in base_map if n in p}, **ans["parameters"]}
     lp_truth = F.log_prob(lp1, F.white_fit(lp1, lp1.space.to_theta(v), rounds=3))
     print(f"candidate MAP {lp_c - base['log_prob']:+.1f}, fit from the generating values "
           f"{lp_truth - base['log_prob']:+.1f} nats over the baseline's MAP")
-    assert lp_truth - base["log_prob"] > 1000.0
+    assert lp_truth - base["log_prob"] > 900.0
     assert lp_c >= lp_truth - 5.0, (lp_c - base["log_prob"], lp_truth - base["log_prob"])
 
 
