@@ -315,15 +315,15 @@ _BASE_MAP_BRFD_TO13_50HZ = {
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("base_map, min_kept_hz", [(_BASE_MAP_BRFD_TO13, None),
-                                                   (_BASE_MAP_BRFD_TO13_50HZ, 50.0)],
+@pytest.mark.parametrize("base_map, min_kept_hz, gap", [(_BASE_MAP_BRFD_TO13, None, 1000.0),
+                                                        (_BASE_MAP_BRFD_TO13_50HZ, 50.0, 900.0)],
                          ids=["raw-decimation", "kept-at-50Hz"])
-def test_candidate_search_leaves_the_baselines_basin(tmp_path, base_map, min_kept_hz):
+def test_candidate_search_leaves_the_baselines_basin(tmp_path, base_map, min_kept_hz, gap):
     """A candidate's MAP search (screen._candidate_map) starts from the baseline's MAP and also
     from find_map's heuristic starts: where the baseline bends to absorb a hidden effect, starts
     from its MAP stay in its basin. The search must end within 5 nats of the fit from the
-    generating values (least squares from them), which is more than 900 nats above the
-    baseline's MAP. Two cases of one campaign:
+    generating values (least squares from them), which is more than `gap` nats above the
+    baseline's MAP (1,000 and 900). Two cases of one campaign:
     - records decimated as the fits do (2026-11-26): the search ended 302 nats above the
       baseline's MAP with the overshoot almost off (a_to_fwd 0.02 against 0.60) and discover
       named reversal_hump; with the heuristic starts 1,570.6 (the generating values' fit 1,560);
@@ -352,7 +352,7 @@ def test_candidate_search_leaves_the_baselines_basin(tmp_path, base_map, min_kep
     lp_truth = F.log_prob(lp1, F.white_fit(lp1, lp1.space.to_theta(v), rounds=3))
     print(f"candidate MAP {lp_c - base['log_prob']:+.1f}, fit from the generating values "
           f"{lp_truth - base['log_prob']:+.1f} nats over the baseline's MAP")
-    assert lp_truth - base["log_prob"] > 900.0
+    assert lp_truth - base["log_prob"] > gap
     assert lp_c >= lp_truth - 5.0, (lp_c - base["log_prob"], lp_truth - base["log_prob"])
 
 
