@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from frictionuq.campaign import load_campaign
-from frictionuq.discrepancy import screen
+from frictionuq.discrepancy import candidate, screen
 from frictionuq.discrepancy.hidden import hidden_campaign
 
 
@@ -319,7 +319,7 @@ _BASE_MAP_BRFD_TO13_50HZ = {
                                                         (_BASE_MAP_BRFD_TO13_50HZ, 50.0, 900.0)],
                          ids=["raw-decimation", "kept-at-50Hz"])
 def test_candidate_search_leaves_the_baselines_basin(tmp_path, base_map, min_kept_hz, gap):
-    """A candidate's MAP search (screen._candidate_map) starts from the baseline's MAP and also
+    """A candidate's MAP search (candidate.candidate_map) starts from the baseline's MAP and also
     from find_map's heuristic starts: where the baseline bends to absorb a hidden effect, starts
     from its MAP stay in its basin. The search must end within 5 nats of the fit from the
     generating values (least squares from them), which is more than `gap` nats above the
@@ -346,7 +346,7 @@ def test_candidate_search_leaves_the_baselines_basin(tmp_path, base_map, min_kep
     th_b = lp0.space.to_theta(base_map)
     base = {"space": lp0.space, "all": th_b, "log_prob": F.log_prob(lp0, th_b)}
     lp1, scales = F.logpost_for(tests, ("takeup_overshoot",), cfg)
-    _, lp_c = screen._candidate_map(lp1, base, np.random.default_rng([1, 17, 1]), scales)
+    _, lp_c = candidate.candidate_map(lp1, base, np.random.default_rng([1, 17, 1]), scales)
     p = pub.published_params("brfd", LEVEL["brfd"])
     v = {**base_map, **{n: p[n] for n in base_map if n in p}, **ans["parameters"]}
     lp_truth = F.log_prob(lp1, F.white_fit(lp1, lp1.space.to_theta(v), rounds=3))

@@ -6,7 +6,7 @@ each applied-force level of a campaign:
 1. the maximum a posteriori point on all tests of the level: for the baseline by
    infer.optimize.find_map (the multi-start search the fits start from); for a candidate by
    least squares from the baseline's MAP with the effect's parameters at their default and at
-   N_EFFECT_STARTS prior draws, and from a differential-evolution search (_candidate_map);
+   N_EFFECT_STARTS prior draws, and from a differential-evolution search (candidate.candidate_map);
 2. stage 1: a candidate whose MAP on all tests is not more than MIN_GAIN above the baseline's
    (each side refitted from the other's MAP first: recheck.cross_refit) is
    not scored held out (rule (e) below refuses it whatever its held-out score; skipping its
@@ -95,7 +95,8 @@ from ..campaign import Record
 from ..infer.compare import elpd_total
 from ..infer.fit import FitConfig
 from ..infer.likelihood import LogPosterior
-from ..infer.optimize import coarsened, find_map, global_start, heuristic_starts, heuristic_values
+from ..infer.optimize import find_map
+from .candidate import fit_candidate
 from . import fits as F
 from .predictive import log_evidence
 from .recheck import cross_refit, nested_recheck, set_evidence
@@ -105,8 +106,6 @@ MIN_GAIN = 20.0
 MIN_UNIT_GAIN = 5.0
 MAX_UNIT_LOSS = 5.0
 MIN_UNITS_FOR_SE = 5
-N_EFFECT_STARTS = 12
-N_CANDIDATE_GLOBAL = 1     # differential-evolution runs per candidate (_candidate_map)
 #: the decision rule in one line (recorded in discrepancy.json; the module docstring says why)
 RULE = (f"screen.py: held-out scores are log predictive densities log Z(all units) - log Z(the "
         f"others), Laplace evidences at each fit's maximum; the candidate with the largest held-out ELPD "
@@ -144,79 +143,10 @@ def blocks(test, n: int = N_BLOCKS) -> list:
     return out
 
 
-def _candidate_map(logpost, base: dict, rng, scales) -> tuple[np.ndarray, float]:
-    """MAP of baseline + one effect by least squares from the baseline's MAP, the effect's
-    parameters at their default and at N_EFFECT_STARTS draws from their prior (the baseline's
-    own multi-start search already placed the other parameters), and at the best point of
-    N_CANDIDATE_GLOBAL differential-evolution searches over the whole prior box
-    (infer.optimize.global_start, on the kept-sample copies, as in find_map). The local starts
-    are run on the coarsened log-posterior, the best two refined on the full one, with the
-    global ones. Why the global search: on a BRFD campaign with a hidden applied_tracking (seed
-    11) the warm starts ended 39 nats below the fit from the generating values (sigma1 2,601
-    against 523 N s/m), and the training fits of the folds, started there, predicted the 0.5 Hz
-    test 400 nats worse than from that fit; the effect was not named (gains +122 / -42 / +205).
-    With one global search per candidate: -16,501.8 (above that fit), and with the evidence-ratio
-    score gains +172 / +222 / +269, named (benchmarks/bench_discover.py); about 4 s per candidate.
-    And from find_map's own heuristic starts (infer.optimize.heuristic_starts, the effect's
-    parameters at their neutral value or the middle of their prior): where the baseline bends
-    to absorb the hidden effect, the warm starts stay in its basin. Seen on a BRFD campaign with
-    a hidden takeup_overshoot (seed 13): the baseline's MAP had v_s 24 times and sigma2 20 times
-    the generating values, the warm and global starts ended 302 nats above it (the overshoot at
-    a_to_fwd 0.02 against 0.60), the model fitted from the generating values 1,560 above, and
-    reversal_hump was named instead; with the heuristic starts 1,570.6 (test_discrepancy_screen),
-    about 2 s more per candidate.
-
-    The local starts' results are ranked on the full log-posterior (one batch of simulations),
-    not on the coarsened one they were fitted on. The coarse copy simulates every k-th sample of
-    a record longer than 800 kept samples at k times the step, a different discrete-time model
-    where the effect acts over a short travel. Seen on the same seed-13 campaign once chatter was
-    screened too (every model then on records kept at 50 Hz or more, so the two harmonics became
-    1,001 and 401 samples and their coarse copies half of that): ranked on the coarse copies, the
-    two starts refined and the global search seeded from the first all ended 357-362 nats *below*
-    the baseline's MAP, and the candidate stayed there with the effect off (the baseline's MAP
-    plus 0.0; discover named it with +511.6 after the cross refits, RMSE 563 N against a noise of
-    180.5 N); ranked on the full records, +923.1 and +968.1 (the fit from the generating values:
-    +958.9), RMSE 172.6 N (test_discrepancy_screen)."""
-    sp = logpost.space
-    coarse = coarsened(logpost, simulate="coarse")   # the screening's calibration
-    th0 = F.theta_in(sp, base["space"], base["all"])
-    eff_idx = [i for i, n in enumerate(sp.names) if n not in base["space"].names]
-    starts = [th0]
-    for d in sp.sample_prior(N_EFFECT_STARTS, rng):
-        th = th0.copy()
-        th[eff_idx] = d[eff_idx]
-        starts.append(th)
-    starts += heuristic_starts(sp, heuristic_values(sp, logpost.records, scales))
-    first = np.array([F.white_fit(coarse, s0, rounds=2, max_nfev=50) for s0 in starts])
-    order = np.argsort(-logpost.log_prob(first), kind="stable")   # ranked on the full records
-    refine = [first[i] for i in order[:2]]
-    if N_CANDIDATE_GLOBAL:
-        ranked = coarsened(logpost, simulate="kept")
-        for _ in range(N_CANDIDATE_GLOBAL):
-            th_g, _ = global_start(ranked, first[order[0]], rng)
-            refine.append(th_g)
-    best, best_lp = th0, F.log_prob(logpost, th0)
-    for s0 in refine:
-        th = F.white_fit(logpost, s0, rounds=3)
-        lp = F.log_prob(logpost, th)
-        if lp > best_lp:
-            best, best_lp = th, lp
-    return best, best_lp
-
-
 def heldout_units(level_tests) -> list[tuple[list, object]]:
     """[(training tests, held-out test)]: leave one test out, or blocks of a single test."""
     units = list(level_tests) if len(level_tests) >= 2 else blocks(level_tests[0])
     return [(units[:k] + units[k + 1:], units[k]) for k in range(len(units))]
-
-
-def _fit_candidate(args) -> tuple[np.ndarray, float, float]:
-    """(MAP, its log-posterior, seconds) of one candidate (a task of workers.Workers.map): its
-    starts from its own generator, seeded by the level's seed and its number of effects."""
-    lp_all, base, seed, n_eff, scales = args
-    t0 = time.perf_counter()
-    th, lp = _candidate_map(lp_all, base, np.random.default_rng([seed, 17, n_eff]), scales)
-    return th, lp, time.perf_counter() - t0
 
 
 def _score_model(args) -> dict:
@@ -264,9 +194,9 @@ def screen_level(level_tests, cfg: FitConfig, seed: int, effects=None, log=None,
     base_theta = {"space": lp_all.space, "all": th_all, "log_prob": lpmap}
     fitted["baseline"] = [lp_all, th_all, lpmap, time.perf_counter() - t0]
     # each candidate from the baseline's MAP (its effect at the default and at prior draws), the
-    # heuristic starts and a global search (_candidate_map), side by side in the workers
+    # heuristic starts and a global search (candidate.candidate_map), side by side in the workers
     lps = {name: F.logpost_for(level_tests, base_effects + (name,), cfg) for name in effects}
-    res = pool.map(_fit_candidate, [(lps[n][0], base_theta, seed, len(base_effects) + 1, lps[n][1])
+    res = pool.map(fit_candidate, [(lps[n][0], base_theta, seed, len(base_effects) + 1, lps[n][1])
                                     for n in effects])
     for name, (th_c, lp_c, secs) in zip(effects, res):
         fitted[name] = [lps[name][0], th_c, lp_c, secs]
