@@ -16,7 +16,7 @@ from frictionuq.discrepancy.hidden import hidden_campaign
 from frictionuq.discrepancy.predictive import log_evidence
 from frictionuq.infer.fit import FitConfig, plan
 from frictionuq.infer.likelihood import LogPosterior, records_from_tests
-from frictionuq.infer.optimize import _clip_in, gauss_newton_cov
+from frictionuq.infer.localfit import clip_in, gauss_newton_cov
 
 
 @pytest.mark.slow
@@ -45,7 +45,7 @@ def test_evidence_ratio_matches_monte_carlo(tmp_path):
 
     draws = th_tr + np.random.default_rng(0).standard_normal((40_000, sp.ndim)) @ \
         np.linalg.cholesky(gauss_newton_cov(lp_tr, th_tr)).T
-    ll = LogPosterior(sp, held).loglik_records(_clip_in(sp, draws)).sum(axis=1)
+    ll = LogPosterior(sp, held).loglik_records(clip_in(sp, draws)).sum(axis=1)
     w = np.exp(ll - ll.max())
     assert w.sum() ** 2 / np.sum(w**2) > 200, "Monte Carlo's effective sample size too small"
     mc = float(logsumexp(ll) - np.log(ll.size))

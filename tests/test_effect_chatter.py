@@ -142,10 +142,11 @@ def _chatter_record(seed=4):
 
 
 def test_noise_step_finds_the_window_and_the_curvature_is_finite():
-    """optimize.fit_noise moves only the noise parameters, to near the truth (model at the
+    """noisefit.fit_noise moves only the noise parameters, to near the truth (model at the
     truth, AR(1) noise integrated out), and gauss_newton_cov then has a positive-definite noise
     block whose sds are small against the prior box (Laplace's evidence of the screening)."""
-    from frictionuq.infer.optimize import fit_noise, gauss_newton_cov, noise_indices
+    from frictionuq.infer.localfit import gauss_newton_cov
+    from frictionuq.infer.noisefit import fit_noise, noise_indices
     t, x, y = _chatter_record()
     sp = _space("ar1", {})
     lp = LogPosterior(sp, [prepare_record("r", t, x, y, q=1, eps=0.0)])

@@ -12,7 +12,7 @@ from .. import params as P
 from ..infer.fit import FitConfig, FitSpec, prepare
 from ..infer.likelihood import LogPosterior, records_from_tests
 from ..infer.noisefit import fit_noise
-from ..infer.optimize import least_squares_fit, whitening
+from ..infer.localfit import least_squares_fit, whitening
 
 
 def logpost_for(tests, effects, cfg: FitConfig):

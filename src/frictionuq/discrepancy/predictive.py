@@ -7,7 +7,7 @@ level's Space), and each by Laplace's method at its own maximum:
 
     log Z = log p(theta_MAP, data) + 1/2 log det(2 pi Sigma)
 
-Sigma the Gauss-Newton covariance at the MAP (infer.optimize.gauss_newton_cov; the 2 pi terms
+Sigma the Gauss-Newton covariance at the MAP (infer.localfit.gauss_newton_cov; the 2 pi terms
 cancel in the difference). The noise sd and AR(1) phi of each record are integrated out in the
 log-posterior itself (infer.noisemodel); the force offset is the fit's shared parameter.
 
@@ -31,7 +31,7 @@ import math
 import numpy as np
 
 from ..infer.likelihood import LogPosterior
-from ..infer.optimize import gauss_newton_cov
+from ..infer.localfit import gauss_newton_cov
 from .fits import log_prob
 
 

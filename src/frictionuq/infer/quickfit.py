@@ -4,8 +4,8 @@
 with a fixed, small budget and no convergence loop, no multi-start MAP search and no storage:
 
 1. start: the best of `n_prior` prior draws, then trust-region least squares from it
-   (optimize.least_squares_fit), with `arma` noise each record's MA coefficient there
-   (optimize.set_noise_shape), the Gauss-Newton covariance there (optimize.gauss_newton_cov)
+   (localfit.least_squares_fit), with `arma` noise each record's MA coefficient there
+   (localfit.set_noise_shape), the Gauss-Newton covariance there (localfit.gauss_newton_cov)
    and the walkers' initial ball around it (sampler.initial_ball);
 2. emcee with the sampler's moves (differential evolution + snooker) in the unbounded
    coordinates (likelihood.UnboundedPosterior: logit of the prior box, Jacobian included) for
@@ -23,7 +23,7 @@ import emcee
 import numpy as np
 
 from .likelihood import LogPosterior, UnboundedPosterior
-from .optimize import gauss_newton_cov, least_squares_fit, set_noise_shape
+from .localfit import gauss_newton_cov, least_squares_fit, set_noise_shape
 from .sampler import SamplerConfig, _moves, initial_ball
 
 

@@ -66,7 +66,8 @@ import numpy as np
 from .. import azadapter
 from ..errors import InputError
 from .likelihood import N_STATS, LogPosterior, UnboundedPosterior
-from .optimize import find_map, gauss_newton_cov
+from .localfit import gauss_newton_cov
+from .optimize import find_map
 from .proposal import IndependenceMove, Proposal, proposal_change
 from .storage import load_proposal, open_backend, store_proposal
 from .priors import RecordScales
