@@ -100,3 +100,29 @@ def test_the_map_search_never_ends_below_a_start_it_refined(tmp_path, monkeypatc
     assert len(found) == 2 and info["start"] == "search"
     assert lp_map >= float(np.max(lp_global)) - 1e-6
     assert lp_map >= max(info["refined_starts_log_prob"]) - 1e-6
+
+
+def test_polish_returns_its_best_point_with_that_points_log_posterior():
+    """optimize.polish returns the best point Powell evaluated with the log-posterior it had
+    there (no re-evaluation): the two must agree exactly, never fall below the start, and the
+    point stays in the prior box. A two-parameter toy whose maximum lies outside the box (at x0 =
+    2 against an upper bound of 1), as the real posteriors that press against a bound."""
+    sp = NS(lo=np.array([0.0, -1.0]), hi=np.array([1.0, 1.0]), ndim=2)
+
+    class Toy:
+        space = sp
+
+        def log_prob(self, X):
+            X = np.atleast_2d(X)
+            inside = np.all((X >= sp.lo) & (X <= sp.hi), axis=1)
+            return np.where(inside, -(X[:, 0] - 2.0) ** 2 - (X[:, 1] - 0.3) ** 2, -np.inf)
+
+    from frictionuq.infer import optimize
+    toy = Toy()
+    th0 = np.array([0.5, 0.0])
+    lp0 = float(toy.log_prob(th0)[0])
+    th, lp = optimize.polish(toy, th0, lp0)
+    assert lp == float(toy.log_prob(th)[0])
+    assert lp >= lp0
+    assert np.all(th >= sp.lo) and np.all(th <= sp.hi)
+    assert lp == pytest.approx(-1.0, abs=1e-8)       # the maximum on the box: (1, 0.3)

@@ -295,5 +295,4 @@ def polish(logpost: LogPosterior, theta: np.ndarray, lp: float,
                  options={"maxiter": 4000, "xtol": 1e-8, "ftol": 1e-12})
         if f0 - best["f"] <= 0.1:
             break
-    th = best["x"]
-    return th, float(logpost.log_prob(th[None, :])[0])
+    return best["x"], (-float(best["f"]) if best["f"] < 1e300 else -np.inf)
