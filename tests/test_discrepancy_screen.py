@@ -15,7 +15,7 @@ from frictionuq.discrepancy.hidden import hidden_campaign
 
 def _row(effect, gains, n_params=2, map_gain=None, rmse=(1.0, 2.0)):
     import numpy as np
-    from frictionuq.infer.compare import elpd_total
+    from frictionuq.infer.elpd import elpd_total
     t = elpd_total(gains)
     return {"effect": effect, "elpd_gain": t["elpd"], "elpd_gain_se": t["se"],
             "gain_per_unit": list(gains), "min_unit_gain": float(np.min(gains)),

@@ -27,8 +27,9 @@ from scipy.integrate import simpson
 from frictionuq import published
 from frictionuq.cli import main
 from frictionuq.infer import noisemodel
-from frictionuq.infer.compare import (compare_campaign, compare_level, elpd_difference, elpd_total,
-                                      format_table, heldout_loglik, log_mean_exp, weights_n_eff)
+from frictionuq.infer.compare import compare_campaign, compare_level, format_table
+from frictionuq.infer.elpd import (elpd_difference, elpd_total, heldout_loglik, log_mean_exp,
+                                   weights_n_eff)
 from frictionuq.infer.offsetnoise import log_cdf_t, log_marginal_offset
 from frictionuq.infer.fit import FitConfig, FitSpec, prepare
 from frictionuq.infer.likelihood import LogPosterior, gauss_loglik

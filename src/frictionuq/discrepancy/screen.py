@@ -92,7 +92,7 @@ import numpy as np
 
 from .. import params as P
 from ..campaign import Record
-from ..infer.compare import elpd_total
+from ..infer.elpd import elpd_total
 from ..infer.fit import FitConfig
 from ..infer.likelihood import LogPosterior
 from ..infer.optimize import find_map
