@@ -24,6 +24,7 @@ from scipy.stats import chi2, norm
 
 from frictionuq import params as P, published
 from frictionuq.discrepancy.features import features
+from frictionuq.draws import Draws
 from frictionuq.infer import outputs
 from frictionuq.infer.fit import FitConfig, FitSpec, prepare
 from frictionuq.infer.likelihood import LogPosterior, prepare_record
@@ -32,7 +33,7 @@ from frictionuq.infer.sampler import SamplerConfig, sample
 from frictionuq.infer.space import Space
 from frictionuq.model import simulate
 from frictionuq.noise import ar1_from_normals, chatter_gain, since_reversal
-from frictionuq.predict import Draws, add_noise, noise_gain
+from frictionuq.predict import add_noise, noise_gain
 
 TRUTH = published.brfd_params(267.0)
 A_CH, S_CH, W_CH = 15.0, 0.012, 0.003

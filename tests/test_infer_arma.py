@@ -173,7 +173,8 @@ def test_arma_likelihood_is_calibrated_and_ar1_is_overconfident_on_ar1_plus_whit
 def test_predict_adds_ar1_plus_white_noise_of_an_arma_fit():
     """predict.add_noise with an `arma` draw: at the fit's own rate the lag-1 autocovariance is
     the ARMA(1,1) one; at half the step only the AR(1) part's correlation is converted."""
-    from frictionuq.predict import Draws, add_noise
+    from frictionuq.draws import Draws
+    from frictionuq.predict import add_noise
     phi, sd_ar, sd_w = 0.9, 0.5, 1.0
     th = theta_of(phi, sd_ar, sd_w)
     sigma = math.hypot(sd_ar, sd_w)

@@ -21,8 +21,9 @@ from frictionuq.errors import InputError
 from frictionuq.infer.fit import FitConfig, fit_campaign
 from frictionuq.infer.sampler import SamplerConfig
 from frictionuq.model import simulate
-from frictionuq.predict import (BAND_COLUMNS, CYCLE_COLUMNS, Draws, add_noise, cycle_bounds,
-                                cycle_table, harmonic_input, predict, write_prediction)
+from frictionuq.draws import Draws
+from frictionuq.predict import (BAND_COLUMNS, CYCLE_COLUMNS, add_noise, cycle_bounds, cycle_table,
+                                harmonic_input, predict, write_prediction)
 
 TRUTH = published.brfd_params(267.0)
 OFFSET = 300.0

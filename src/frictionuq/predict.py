@@ -2,11 +2,8 @@
 
 Given a fit output folder (`frictionuq fit`, see frictionuq.infer.fit) and an applied force F:
 
-* Parameter draws. If F is a fitted level (summary.json fits[i]["applied"], relative tolerance
-  1e-6), the joint posterior draws of that fit (free parameters from posterior.nc, fixed ones
-  from fit.json), with its model and effects; several fits at the same level (`fit --by test`)
-  are pooled with equal weight. Otherwise the force-dependence law of the folder
-  (frictionuq.infer.law.draws_at); without a law the request is refused.
+* Parameter draws: a fitted level's posterior, else the folder's force-dependence law
+  (frictionuq.draws.choose_draws).
 * Measurement noise. Each draw takes the noise (sigma_noise, noise_phi) of one of its fit's
   tests, picked at random, from the same posterior draw. With the law, the noise comes from the
   posterior of the fitted level nearest in log force (the law describes the model parameters
@@ -46,9 +43,9 @@ import pandas as pd
 
 from . import atomic, params as P
 from .errors import InputError, check_draws, check_seed
-from .fitdir import FitPosterior, campaign_applied_unit, fitted_levels, load_posterior, load_summary
+from .draws import Draws, choose_draws
+from .fitdir import campaign_applied_unit, load_summary
 
-REL_TOL = 1e-6
 QUANTILES = (2.5, 25.0, 50.0, 75.0, 97.5)
 HARMONIC_CYCLES = 3
 HARMONIC_SAMPLES_PER_CYCLE = 200
@@ -58,103 +55,12 @@ BAND_COLUMNS = ["time", "displacement",
                 "force_model_q97.5"]
 CYCLE_COLUMNS = ["cycle", "t_start", "t_end", "peak_force_median", "peak_force_q2.5",
                  "peak_force_q97.5", "energy_median", "energy_q2.5", "energy_q97.5"]
-LIKELIHOOD_ONLY = set(P.LIKELIHOOD_NAMES)
 #: backlash parameters unused by the pure LuGre model (as in infer.space.Space)
 _LUGRE_UNUSED = {"k2": 0.0, "d2": 0.0, "k3": 0.0, "d3": 0.0, "w": 1e-3}
 FLOAT_FORMAT = "%.9g"
 #: samples x draws per (S, N) array: a few such arrays live at once (about 240 MB each)
 MAX_ELEMENTS = 30_000_000
 _NOISE_CHUNK = 32
-
-
-# ---------------------------------------------------------------- parameter draws
-
-@dataclass
-class Draws:
-    """S parameter draws for one prediction, with their measurement noise and offset."""
-    params: dict[str, np.ndarray]      # model parameters (SI), (S,) each
-    model: str
-    effects: tuple[str, ...]
-    offset: np.ndarray                 # (S,) force_offset (N)
-    sigma: np.ndarray                  # (S,) noise marginal sd (N)
-    phi: np.ndarray                    # (S,) noise lag-1 correlation at rate_hz
-    rate_hz: np.ndarray                # (S,)
-    source: str
-    fits: list[str]
-    theta: np.ndarray | None = None    # (S,) ARMA(1,1) MA coefficient at rate_hz (None: 0)
-
-    @property
-    def size(self) -> int:
-        return self.offset.size
-
-
-def _take(posts: list[FitPosterior], n: int, rng) -> dict:
-    """n joint draws from a mixture (equal weights) of fits: named parameters (free + fixed),
-    offset and one test's noise per draw."""
-    which = rng.integers(len(posts), size=n) if len(posts) > 1 else np.zeros(n, int)
-    names = set().union(*(set(p.params) | set(p.fixed) for p in posts))
-    out = {k: np.full(n, np.nan) for k in names | {"_sigma", "_phi", "_rate", "_theta"}}
-    for k, p in enumerate(posts):
-        sel = np.flatnonzero(which == k)
-        if not sel.size:
-            continue
-        idx = rng.choice(p.size, size=sel.size, replace=p.size < sel.size)
-        j = rng.integers(p.sigma.shape[1], size=sel.size)
-        for nm in names:
-            if nm in p.params:
-                out[nm][sel] = p.params[nm][idx]
-            elif nm in p.fixed:
-                out[nm][sel] = p.fixed[nm]
-        out["_sigma"][sel] = p.sigma[idx, j]
-        out["_phi"][sel] = p.phi[idx, j]
-        out["_rate"][sel] = p.rate_hz[j]
-        out["_theta"][sel] = p.theta[j] if p.theta is not None else 0.0
-    return out
-
-
-def choose_draws(fit_dir, applied_si: float, n: int, rng, summary: dict | None = None) -> Draws:
-    """n parameter draws at applied force `applied_si` (SI): the posterior of the fit(s) at that
-    level, else the folder's force-dependence law (module docstring)."""
-    summary = summary or load_summary(fit_dir)
-    a = float(applied_si)
-    match = [f for f in summary["fits"] if f.get("applied") is not None
-             and abs(float(f["applied"]) - a) <= REL_TOL * max(abs(float(f["applied"])), 1e-300)]
-    if match:
-        posts = [load_posterior(fit_dir, f["id"]) for f in match]
-        kinds = {(p.model, p.effects) for p in posts}
-        if len(kinds) > 1:
-            raise InputError(f"{fit_dir}: the fits at applied {a:g} (SI) use different models/effects "
-                             f"{sorted(kinds)}; predict from one of them")
-        d = _take(posts, n, rng)
-        ids = [p.id for p in posts]
-        src = f"posterior of fit {ids[0]}" if len(ids) == 1 else \
-            f"posterior of fits {', '.join(ids)} (equal-weight mixture)"
-        params = {k: v for k, v in d.items() if not k.startswith("_") and k not in LIKELIHOOD_ONLY}
-        return Draws(params, posts[0].model, posts[0].effects, d.get("force_offset", np.zeros(n)),
-                     d["_sigma"], d["_phi"], d["_rate"], src, ids, d["_theta"])
-    levels = fitted_levels(summary)
-    lv = ", ".join(f"{v:g}" for v in levels) or "none"
-    try:
-        from .infer.law import draws_at
-    except ImportError:
-        raise InputError(f"{fit_dir}: applied force {a:g} (SI) is not a fitted level (fitted: {lv}) "
-                         "and no force-dependence law is available in this version") from None
-    try:
-        params, model, effects = draws_at(fit_dir, a, n, rng)
-    except InputError as e:
-        raise InputError(f"no fitted level at applied force {a:g} (SI) (fitted: {lv}) and no usable "
-                         f"force-dependence law in {fit_dir}: {e}") from None
-    if not levels:
-        raise InputError(f"{fit_dir}: no fit at a single applied force to take the noise from")
-    near = min(levels, key=lambda v: abs(math.log(v) - math.log(a)) if v > 0 and a > 0 else abs(v - a))
-    posts = [load_posterior(fit_dir, f["id"]) for f in summary["fits"]
-             if f.get("applied") is not None and float(f["applied"]) == near]
-    d = _take(posts, n, rng)
-    off = np.asarray(params["force_offset"], float) if "force_offset" in params else \
-        d.get("force_offset", np.zeros(n))
-    params = {k: np.asarray(v, float) for k, v in params.items() if k not in LIKELIHOOD_ONLY}
-    return Draws(params, model, tuple(effects), off, d["_sigma"], d["_phi"], d["_rate"],
-                 "force-dependence law", [p.id for p in posts], d["_theta"])
 
 
 def kernel_matrix(params: dict[str, np.ndarray], model: str, effects) -> np.ndarray:
