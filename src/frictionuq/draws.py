@@ -3,9 +3,9 @@
 
 If F is a fitted level (summary.json fits[i]["applied"], relative tolerance 1e-6), the joint
 posterior draws of that fit (free parameters from posterior.nc, fixed ones from fit.json), with
-its model and effects; several fits at the same level (`fit --by test`)
-are pooled with equal weight. Otherwise the force-dependence law of the folder
-(frictionuq.infer.law.draws_at); without a law the request is refused.
+its model and effects; several fits at the same level (`fit --by test`) are pooled with equal
+weight. Otherwise the force-dependence law of the folder (frictionuq.infer.law.draws_at); without
+a law the request is refused.
 Each draw carries the measurement noise (sigma_noise, noise_phi, and the ARMA(1,1) MA
 coefficient where the fit has one) of one of its fit's tests, picked at random, from the same
 posterior draw; with the law, from the posterior of the fitted level nearest in log force (the

@@ -2,12 +2,9 @@
 
 Given a fit output folder (`frictionuq fit`, see frictionuq.infer.fit) and an applied force F:
 
-* Parameter draws: a fitted level's posterior, else the folder's force-dependence law
-  (frictionuq.draws.choose_draws).
-* Measurement noise. Each draw takes the noise (sigma_noise, noise_phi) of one of its fit's
-  tests, picked at random, from the same posterior draw. With the law, the noise comes from the
-  posterior of the fitted level nearest in log force (the law describes the model parameters
-  only). noise_phi was estimated at the decimated rate of each record (fit.json
+* Parameter draws, each with the noise of one of its fit's tests: a fitted level's posterior,
+  else the folder's force-dependence law (frictionuq.draws.choose_draws, which says how).
+* Measurement noise. noise_phi was estimated at the decimated rate of each record (fit.json
   records[].rate_hz); reading the AR(1) noise as a sampled Ornstein-Uhlenbeck process, the
   correlation at the prediction's median step dt is phi ** (dt * rate_hz), the marginal sd
   unchanged. A fit with ARMA(1,1) noise (likelihood `arma`, MA coefficient noise_theta per
