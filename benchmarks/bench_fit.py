@@ -1,7 +1,7 @@
 """Calibration benchmark (issue 3 item 13): full fits to the convergence criteria, side by side.
 
     .venv/bin/python benchmarks/bench_fit.py [--case twin|arts-d1|all] [--simulate-at raw|kept|both]
-        [--out DIR]
+        [--sampler ensemble|chains|both] [--tests ID ...] [--out DIR]
 
 Cases:
   * `twin`     one applied force of the BRFD twin (data/brfd-twin, 267 N, all its tests: four
@@ -14,6 +14,9 @@ wall time) and whether it met R-hat <= 1.01 and ESS >= 400 for every parameter.
 --simulate-at: the decimated records' model force simulated at the raw rate and filtered like the
 data (the default configuration), on the decimated displacement (cheaper, biased:
 infer.likelihood), or both side by side with their time ratio.
+--sampler: the stored run as the default ensemble (DE + independence move, the burn-in's walkers),
+as 16 independent chains (`run_walkers=16, independence_weight=0.8`: infer.sampler), or both
+side by side with their time ratio. --tests: only these tests of the case's campaign.
 Targets: under 2 minutes for the twin force level, under 10 minutes for all of brfd-arts-d1, on
 the 2-core machine. Run it on a quiet machine; the figures are in the README
 (current) and docs/log-calibration.md (every run).
@@ -39,12 +42,16 @@ CASES = {
 }
 
 
-def run(case: str, out: Path, simulate_at: str = "raw") -> dict:
+SAMPLERS = {"ensemble": {}, "chains": {"run_walkers": 16, "independence_weight": 0.8}}
+
+
+def run(case: str, out: Path, simulate_at: str = "raw", sampler: str = "ensemble",
+        tests=None) -> dict:
     path, sel, target = CASES[case]
-    cfg = FitConfig(tests=sel.get("tests"), sampler=SamplerConfig(progress=False),
-                    simulate_at=simulate_at)
+    cfg = FitConfig(tests=tuple(tests) if tests else sel.get("tests"), simulate_at=simulate_at,
+                    sampler=SamplerConfig(progress=False, **SAMPLERS[sampler]))
     t0 = time.perf_counter()
-    s = fit_campaign(path, out / f"{case}-{simulate_at}", by="applied", config=cfg)
+    s = fit_campaign(path, out / f"{case}-{simulate_at}-{sampler}", by="applied", config=cfg)
     wall = time.perf_counter() - t0
     rows = []
     for f in s["fits"]:
@@ -53,13 +60,16 @@ def run(case: str, out: Path, simulate_at: str = "raw") -> dict:
         rhat = max(p["r_hat"] for p in free.values())
         rows.append((f["id"], f["seconds"], f["model_evaluations"], ess, rhat, f["converged"],
                      f["sampler_steps"], f["tau_max"]))
-    return {"case": f"{case} ({simulate_at})", "wall": wall, "target": target, "rows": rows}
+    return {"case": f"{case} ({simulate_at}, {sampler})", "wall": wall, "target": target,
+            "rows": rows}
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--case", choices=["twin", "arts-d1", "all"], default="all")
     ap.add_argument("--simulate-at", choices=["raw", "kept", "both"], default="raw")
+    ap.add_argument("--sampler", choices=["ensemble", "chains", "both"], default="ensemble")
+    ap.add_argument("--tests", nargs="+", default=None, help="only these tests of the campaign")
     ap.add_argument("--out", default=None, help="keep the fit outputs here (default: temporary)")
     a = ap.parse_args(argv)
     print(f"frictionuq {frictionuq.__version__}, Python {platform.python_version()}, "
@@ -68,19 +78,24 @@ def main(argv=None):
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(a.out) if a.out else Path(tmp)
         ats = ["raw", "kept"] if a.simulate_at == "both" else [a.simulate_at]
-        results = [run(c, out, at) for c in cases for at in ats]
-    print(f"{'fit':<34}{'wall s':>8}{'evals':>10}{'evals/s':>9}{'steps':>8}{'tau':>7}"
+        sms = ["ensemble", "chains"] if a.sampler == "both" else [a.sampler]
+        results = [run(c, out, at, sm, a.tests) for c in cases for at in ats for sm in sms]
+    print(f"{'fit':<42}{'wall s':>8}{'evals':>10}{'evals/s':>9}{'steps':>8}{'tau':>7}"
           f"{'ESS min':>9}{'R-hat':>7}{'ESS/s':>7}  converged")
     for r in results:
         for fid, sec, ev, ess, rhat, ok, steps, tau in r["rows"]:
-            print(f"{r['case'] + '/' + fid:<34}{sec:8.0f}{ev:10d}{ev / sec:9.0f}{steps:8d}{tau:7.0f}"
+            print(f"{r['case'] + '/' + fid:<42}{sec:8.0f}{ev:10d}{ev / sec:9.0f}{steps:8d}{tau:7.0f}"
                   f"{ess:9.0f}{rhat:7.3f}{ess / sec:7.2f}  {'yes' if ok else 'NO'}")
-        print(f"{r['case']:<34}{r['wall']:8.0f} s in all (target {r['target']:.0f} s: "
+        print(f"{r['case']:<42}{r['wall']:8.0f} s in all (target {r['target']:.0f} s: "
               f"{'met' if r['wall'] <= r['target'] else 'NOT met'}, ratio {r['wall'] / r['target']:.2f})")
-    if a.simulate_at == "both":
-        for c in cases:
-            w = {r["case"]: r["wall"] for r in results}
-            print(f"{c}: raw / kept wall time {w[f'{c} (raw)'] / w[f'{c} (kept)']:.2f}")
+    w = {r["case"]: r["wall"] for r in results}
+    for c in cases:
+        for sm in sms if a.simulate_at == "both" else []:
+            print(f"{c} ({sm}): raw / kept wall time "
+                  f"{w[f'{c} (raw, {sm})'] / w[f'{c} (kept, {sm})']:.2f}")
+        for at in ats if a.sampler == "both" else []:
+            print(f"{c} ({at}): ensemble / chains wall time "
+                  f"{w[f'{c} ({at}, ensemble)'] / w[f'{c} ({at}, chains)']:.2f}")
 
 
 if __name__ == "__main__":

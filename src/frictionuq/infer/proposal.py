@@ -67,6 +67,7 @@ class Proposal:
     x_width: np.ndarray
     df: float = 5.0
     scale: float = 1.25
+    x_cov: np.ndarray | None = None   # covariance of the states in x (the random-walk move's)
 
     @classmethod
     def fit(cls, pool: np.ndarray, df: float = 5.0, scale: float = 1.25) -> "Proposal":
@@ -78,6 +79,7 @@ class Proposal:
                 df, scale)
         z = p.to_z(pool)[0]
         p.mean, p.cov = z.mean(axis=0), np.atleast_2d(np.cov(z.T))
+        p.x_cov = np.atleast_2d(np.cov(pool.T))
         return p
 
     @classmethod
@@ -86,7 +88,7 @@ class Proposal:
         mean, cov = np.asarray(mean, float), np.atleast_2d(np.asarray(cov, float))
         d = mean.size
         return cls(np.zeros(d), np.zeros(d), np.zeros(d), np.ones(d), mean, cov, mean,
-                   np.sqrt(np.diag(cov)), df, scale)
+                   np.sqrt(np.diag(cov)), df, scale, cov)
 
     def __post_init__(self):
         # per-coordinate constants of to_z / from_z, computed once (to_z runs twice per step)
@@ -111,17 +113,30 @@ class Proposal:
         return self.loc + self.sc * np.where(self._su, np.sinh(w), z)
 
     def to_attrs(self) -> dict:
-        return {"proposal_marginals": np.vstack([self.a, self.b, self.loc, self.sc]),
-                "proposal_mean": self.mean, "proposal_cov": self.cov,
-                "proposal_x_centre": self.x_centre, "proposal_x_width": self.x_width,
-                "proposal_df": self.df, "proposal_scale": self.scale}
+        attrs = {"proposal_marginals": np.vstack([self.a, self.b, self.loc, self.sc]),
+                 "proposal_mean": self.mean, "proposal_cov": self.cov,
+                 "proposal_x_centre": self.x_centre, "proposal_x_width": self.x_width,
+                 "proposal_df": self.df, "proposal_scale": self.scale}
+        if self.x_cov is not None:
+            attrs["proposal_x_cov"] = self.x_cov
+        return attrs
 
     @classmethod
     def from_attrs(cls, attrs) -> "Proposal":
         a, b, loc, sc = np.array(attrs["proposal_marginals"])
         return cls(a, b, loc, sc, np.array(attrs["proposal_mean"]), np.array(attrs["proposal_cov"]),
                    np.array(attrs["proposal_x_centre"]), np.array(attrs["proposal_x_width"]),
-                   float(attrs["proposal_df"]), float(attrs["proposal_scale"]))
+                   float(attrs["proposal_df"]), float(attrs["proposal_scale"]),
+                   np.array(attrs["proposal_x_cov"]) if "proposal_x_cov" in attrs else None)
+
+    def random_walk(self) -> emcee.moves.GaussianMove:
+        """A Gaussian random-walk Metropolis move with the states' covariance scaled by
+        2.38^2 / D (Roberts, Gelman & Gilks 1997): the local move beside the independence move
+        when each walker is its own chain (no ensemble move). Without x_cov: the widths."""
+        d = self.mean.size
+        cov = self.x_cov if self.x_cov is not None else np.diag(self.x_width ** 2)
+        cov = np.atleast_2d(cov) + 1e-12 * np.trace(np.atleast_2d(cov)) / d * np.eye(d)
+        return emcee.moves.GaussianMove(cov * 2.38 ** 2 / d)
 
 
 def proposal_change(old, new) -> tuple[float, float]:

@@ -6,7 +6,7 @@ with a fixed, small budget and no convergence loop, no multi-start MAP search an
 1. start: the best of `n_prior` prior draws, then trust-region least squares from it
    (localfit.least_squares_fit), with `arma` noise each record's MA coefficient there
    (localfit.set_noise_shape), the Gauss-Newton covariance there (localfit.gauss_newton_cov)
-   and the walkers' initial ball around it (sampler.initial_ball);
+   and the walkers' initial ball around it (walkers.initial_ball);
 2. emcee with the sampler's moves (differential evolution + snooker) in the unbounded
    coordinates (likelihood.UnboundedPosterior: logit of the prior box, Jacobian included) for
    `steps` steps, all returned (the caller discards its burn-in and thins).
@@ -24,7 +24,8 @@ import numpy as np
 
 from .likelihood import LogPosterior, UnboundedPosterior
 from .localfit import gauss_newton_cov, least_squares_fit, set_noise_shape
-from .sampler import SamplerConfig, _moves, initial_ball
+from .sampler import SamplerConfig, _moves
+from .walkers import initial_ball
 
 
 @dataclass

@@ -38,6 +38,17 @@ until the chain passes the convergence criteria.
   (R-hat still 1.014 after 12,000 steps), with the independence move a walker decorrelates in a
   few steps wherever the posterior is close to the t. DE needs more than 2 x ndim walkers; the
   default is max(32, 2 ndim + 4).
+* Independent chains (opt-in, `run_walkers`): since R-hat needs about a hundred effective draws
+  per walker whatever the walker count, the stored run's cost is proportional to the number of
+  walkers. With `run_walkers` = n the stored run keeps n of the burn-in's final positions and
+  moves each walker on its own: the independence move (weight `independence_weight`) and a
+  Gaussian random walk with the burn-in round's covariance scaled by 2.38^2 / D (no ensemble
+  move, so the walkers are independent Markov chains, the setting R-hat was made for). The
+  burn-in keeps its ensemble moves and its walkers. BRFD twin 267 N, one shared burn-in: 16
+  walkers with weight 0.8 met R-hat <= 1.01 after 2,000 stored steps (32,016 evaluations)
+  against 2,500 steps (80,032) for the default ensemble (docs/log-calibration.md, 2026-11-28).
+  Not the default: the real records' posteriors (two d3 modes, ridges at prior bounds) are where
+  the ensemble's DE jumps may matter, and that was not measured.
 * Stopping: every `chunk` steps of the stored run, on its part after the first
   `discard_fraction` (the burn-in phase is already discarded): the integrated autocorrelation
   time tau of every parameter (emcee.autocorr) and ArviZ's rank-normalised R-hat and bulk/tail
@@ -71,6 +82,7 @@ from .optimize import find_map
 from .proposal import IndependenceMove, Proposal, proposal_change
 from .storage import load_proposal, open_backend, store_proposal
 from .priors import RecordScales
+from .walkers import initial_ball, pooled_states, reinitialise
 
 
 @dataclass
@@ -94,6 +106,8 @@ class SamplerConfig:
     n_prior_starts: int = 4
     n_global_starts: int = 2          # differential-evolution runs (optimize.global_start)
     independence: bool = True         # add the independence move fitted to the burn-in
+    independence_weight: float = 0.5  # its share of the stored run's moves
+    run_walkers: int | None = None    # stored run: None = the burn-in's ensemble; n = n independent chains
     thin_output: int | None = None    # default: about tau/4
     progress: bool | None = None      # default: on a terminal
 
@@ -113,6 +127,12 @@ class SamplerConfig:
                                  f"got {v!r}")
         if not self.discard_fraction < 1:
             raise InputError(f"sampler: discard_fraction must be < 1, got {self.discard_fraction!r}")
+        if not self.independence_weight <= 1:
+            raise InputError(f"sampler: independence_weight must be in (0, 1], got "
+                             f"{self.independence_weight!r}")
+        if self.run_walkers is not None and self.run_walkers < 4:
+            raise InputError(f"sampler: run_walkers must be >= 4 (R-hat compares chains), got "
+                             f"{self.run_walkers!r}")
 
     def to_json(self) -> dict:
         return asdict(self)
@@ -148,54 +168,6 @@ def _nwalkers(cfg: SamplerConfig, ndim: int) -> int:
     return int(w + (w % 2))
 
 
-def initial_ball(theta_map, cov, nwalkers, rng, space) -> np.ndarray:
-    """Walkers around the MAP (box coordinates): N(MAP, Sigma/4), kept 0.1 % of the box width
-    away from its walls (a MAP on a wall would put every walker at u = -inf)."""
-    width = space.hi - space.lo
-    sd = np.sqrt(np.clip(np.diag(cov), (1e-8 * width) ** 2, (0.1 * width) ** 2))
-    dsd = np.sqrt(np.abs(np.diag(cov)))
-    corr = cov / np.outer(dsd, dsd)
-    corr = np.where(np.isfinite(corr), corr, 0.0)
-    try:
-        L = np.linalg.cholesky(corr + 1e-9 * np.eye(len(sd)))
-    except np.linalg.LinAlgError:
-        L = np.eye(len(sd))
-    margin = 1e-3 * width
-    centre = np.clip(theta_map, space.lo + margin, space.hi - margin)
-    z = rng.standard_normal((nwalkers, len(sd))) @ L.T
-    p = centre + 0.5 * z * sd   # half the approximate posterior sd: inside the typical set
-    return np.clip(p, space.lo + 0.5 * margin, space.hi - 0.5 * margin)
-
-
-def pooled_states(chain: np.ndarray, log_prob: np.ndarray):
-    """States of the second half of a burn-in chain (steps, walkers, ndim) with finite log
-    posterior, pooled over the walkers that are not stuck (mean log-posterior more than
-    max(10, 3 sqrt(D/2)) below the median walker's). Returns (states, number of stuck walkers)."""
-    n = chain.shape[0]
-    half, lp = chain[n // 2:], log_prob[n // 2:]
-    mean_lp = np.mean(lp, axis=0)
-    tol = max(10.0, 3.0 * np.sqrt(chain.shape[2] / 2.0))
-    good = np.flatnonzero(mean_lp >= np.median(mean_lp) - tol)
-    pool = half[:, good].reshape(-1, chain.shape[2])
-    pool_lp = lp[:, good].ravel()
-    return pool[np.isfinite(pool_lp)], int(chain.shape[1] - good.size)
-
-
-def reinitialise(chain: np.ndarray, log_prob: np.ndarray, nwalkers: int, rng) -> tuple[np.ndarray, int]:
-    """New walker positions drawn (without replacement) from `pooled_states`. Returns
-    (positions, number of stuck walkers)."""
-    pool, stuck = pooled_states(chain, log_prob)
-    # a rejected proposal repeats a state: draw distinct states only (two identical walkers
-    # make the snooker move divide by zero)
-    pool = np.unique(pool, axis=0)
-    if pool.shape[0] >= nwalkers:
-        return pool[rng.choice(pool.shape[0], size=nwalkers, replace=False)], stuck
-    p = pool[rng.choice(pool.shape[0], size=nwalkers, replace=True)]
-    sd = np.std(pool, axis=0) if pool.shape[0] > 1 else np.ones(chain.shape[2])
-    p = p + 1e-3 * np.where(sd > 0, sd, 1e-6) * rng.standard_normal(p.shape)
-    return p, stuck
-
-
 def _tau(chain: np.ndarray) -> np.ndarray:
     """Integrated autocorrelation time per parameter (steps); a parameter whose walkers did not
     move at all gets the chain length (i.e. not converged), never NaN."""
@@ -216,12 +188,24 @@ def fit_proposal(chain: np.ndarray, log_prob: np.ndarray) -> Proposal:
     return Proposal.fit(pooled_states(chain, log_prob)[0])
 
 
-def _moves(cfg: SamplerConfig, proposal=None):
+def _independent(cfg: SamplerConfig, proposal) -> bool:
+    """Whether the stored run moves each walker on its own (module docstring)."""
+    return cfg.run_walkers is not None and cfg.independence and proposal is not None
+
+
+def _moves(cfg: SamplerConfig, proposal=None, stored: bool = False):
+    """The burn-in rounds' moves (stored=False) or the stored run's."""
     de = emcee.moves.DEMove() if cfg.de_gamma is None else emcee.moves.DEMove(gamma0=cfg.de_gamma)
     if proposal is None or not cfg.independence:
         return [(de, 0.7), (emcee.moves.DEMove(gamma0=1.0), 0.1), (emcee.moves.DESnookerMove(), 0.2)]
-    return [(IndependenceMove(proposal), 0.5), (de, 0.35), (emcee.moves.DEMove(gamma0=1.0), 0.05),
-            (emcee.moves.DESnookerMove(), 0.1)]
+    w = cfg.independence_weight if stored else 0.5
+    if stored and _independent(cfg, proposal):
+        moves = [(IndependenceMove(proposal), w), (proposal.random_walk(), 1.0 - w)]
+        return [m for m in moves if m[1] > 0]
+    rest = 1.0 - w
+    moves = [(IndependenceMove(proposal), w), (de, 0.7 * rest),
+             (emcee.moves.DEMove(gamma0=1.0), 0.1 * rest), (emcee.moves.DESnookerMove(), 0.2 * rest)]
+    return [m for m in moves if m[1] > 0]
 
 
 def check(chain: np.ndarray, cfg: SamplerConfig) -> dict:
@@ -233,7 +217,8 @@ def check(chain: np.ndarray, cfg: SamplerConfig) -> dict:
             "r_hat": diag["r_hat"]}
 
 
-def burn_in(target, state: np.ndarray, cfg: SamplerConfig, seed: int, rng, log=None):
+def burn_in(target, state: np.ndarray, cfg: SamplerConfig, seed: int, rng, log=None,
+            n_out: int | None = None):
     """The burn-in phase (module docstring) from walker positions `state` (walkers, ndim) of
     the vectorized emcee target. Rounds of cfg.burn_steps steps, at least cfg.burn_rounds, more
     (up to cfg.burn_max_rounds) while the walkers still climb, some are stuck, or the proposal
@@ -242,19 +227,21 @@ def burn_in(target, state: np.ndarray, cfg: SamplerConfig, seed: int, rng, log=N
     posterior along a parameter (BRFD twin 267 N: d3 at 0.009 of its posterior sd), and a
     proposal fitted before the ensemble has spread is rejected almost always (measured: 0.9 %
     acceptance, tau 149 steps, against 20 % and tau 36 with this rule).
-    Returns (positions, proposal.Proposal, steps run)."""
+    Returns (positions, proposal.Proposal, steps run); `n_out` positions (default: as many as
+    walkers), drawn like the next round's."""
     log = log or (lambda msg: None)
     nw, ndim = state.shape
+    n_draw = max(nw, n_out or nw)
     proposal, prev, steps = None, -np.inf, 0
     for rnd in range(max(cfg.burn_rounds, cfg.burn_max_rounds)):
         bs = emcee.EnsembleSampler(nw, ndim, target, vectorize=True, moves=_moves(cfg, proposal))
         bs.random_state = np.random.RandomState([seed % (2**32), rnd]).get_state()
-        bs.run_mcmc(state, cfg.burn_steps, progress=_progress(cfg), skip_initial_state_check=True)
+        bs.run_mcmc(state[:nw], cfg.burn_steps, progress=_progress(cfg), skip_initial_state_check=True)
         lpc = bs.get_log_prob()
         new = fit_proposal(bs.get_chain(), lpc)
         ratio, shift = proposal_change(proposal.spread if proposal else None, new.spread)
         proposal = new
-        state, stuck = reinitialise(bs.get_chain(), lpc, nw, rng)
+        state, stuck = reinitialise(bs.get_chain(), lpc, n_draw, rng)
         steps += cfg.burn_steps
         level = float(np.median(lpc[cfg.burn_steps // 2:]))
         log(f"burn-in round {rnd + 1}: acceptance {np.mean(bs.acceptance_fraction):.2f}, "
@@ -282,10 +269,12 @@ def sample(logpost: LogPosterior, scales: RecordScales, seed: int,
     sp = logpost.space
     ndim = sp.ndim
     nw = _nwalkers(cfg, ndim)
+    # the stored run's walkers: the burn-in's ensemble, or run_walkers independent chains
+    nrun = cfg.run_walkers if cfg.run_walkers is not None and cfg.independence else nw
     t0 = time.perf_counter()
     rng = np.random.default_rng(seed)
     target = UnboundedPosterior(logpost, stats=True)
-    backend, resumed = open_backend(backend_path, nw, ndim, resume, log)
+    backend, resumed = open_backend(backend_path, nrun, ndim, resume, log)
 
     theta_map, lp_map, map_info = find_map(logpost, scales, rng, cfg.n_random_starts,
                                            cfg.n_prior_starts, log=log, n_global=cfg.n_global_starts,
@@ -298,14 +287,16 @@ def sample(logpost: LogPosterior, scales: RecordScales, seed: int,
     else:
         cov = gauss_newton_cov(logpost, theta_map)
         state = sp.to_u(initial_ball(theta_map, cov, nw, rng, sp))
-        state, proposal, burn_in_steps = burn_in(target, state, cfg, seed, rng, log)
+        state, proposal, burn_in_steps = burn_in(target, state, cfg, seed, rng, log,
+                                                 n_out=nrun if nrun != nw else None)
+        state = state[:nrun]
 
     if resumed:      # the stored run's proposal is kept in the backend's attributes
         proposal = load_proposal(backend)
     else:
         store_proposal(backend, proposal)
-    sampler = emcee.EnsembleSampler(nw, ndim, target, vectorize=True, moves=_moves(cfg, proposal),
-                                    backend=backend)
+    sampler = emcee.EnsembleSampler(nrun, ndim, target, vectorize=True,
+                                    moves=_moves(cfg, proposal, stored=True), backend=backend)
     if not resumed:
         sampler.random_state = np.random.RandomState(seed % (2**32)).get_state()
 
