@@ -263,13 +263,14 @@ def test_interrupted_run_resumes_without_losing_steps(small_fit, tmp_path):
 
 
 def test_independent_chains_run_reproduces_and_resumes(small_fit, tmp_path):
-    """With `run_walkers` the stored run has that many walkers (the burn-in keeps its 32), the
-    same seed gives the same chain, and a run stopped after 40 stored steps and resumed to 60
-    equals the uninterrupted one (the random walk's covariance is restored with the proposal)."""
+    """With `run_walkers` (and the profiled start) the stored run has that many walkers (the
+    burn-in keeps its 32), the same seed gives the same chain, and a run stopped after 40 stored
+    steps and resumed to 60 equals the uninterrupted one (the random walk's covariance is
+    restored with the proposal)."""
     import emcee
     lp, scales, _ = small_fit
-    kw = dict(nwalkers=32, run_walkers=8, independence_weight=0.8, chunk=20, min_steps=20,
-              burn_rounds=2, burn_steps=10, burn_max_rounds=2, n_random_starts=0,
+    kw = dict(nwalkers=32, run_walkers=8, independence_weight=0.8, start_profile=True, chunk=20,
+              min_steps=20, burn_rounds=2, burn_steps=10, burn_max_rounds=2, n_random_starts=0,
               n_prior_starts=1, progress=False, tau_factor=1e9, thin_output=1)
     full = sample(lp, scales, seed=3, backend_path=tmp_path / "full.h5",
                   cfg=SamplerConfig(max_steps=60, **kw), resume=False)

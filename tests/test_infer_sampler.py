@@ -142,3 +142,28 @@ def test_run_walkers_is_refused_below_four_and_weight_above_one():
         SamplerConfig(run_walkers=3)
     with pytest.raises(InputError, match="independence_weight"):
         SamplerConfig(independence_weight=1.5)
+
+
+def test_profile_sides_find_a_one_sided_kink_and_widen_the_start_ball_on_its_flat_side():
+    """A posterior with a cliff just above the MAP in x0 (-1000 x0 nats) and a Gaussian of sd 1
+    below it, while the Gauss-Newton sd says 0.01: the profile reaches all 64 sds below (half-width
+    32), only 1/8 sd above (1/16); x1, a Gaussian of sd 1 with a correct sd, reaches 2 sds each
+    way (half-width 1, the default ball's 0.5 doubled). The ball then spreads below the MAP."""
+    from types import SimpleNamespace
+    from frictionuq.infer.walkers import initial_ball, profile_sides
+
+    def log_prob(x):
+        x = np.atleast_2d(x)
+        return np.where(x[:, 0] < 0, -0.5 * x[:, 0] ** 2, -1000.0 * x[:, 0]) - 0.5 * x[:, 1] ** 2
+
+    space = SimpleNamespace(lo=np.array([-50.0, -50.0]), hi=np.array([50.0, 50.0]))
+    cov = np.diag([1e-4, 1.0])
+    sides = profile_sides(log_prob, np.zeros(2), cov, space)
+    assert np.array_equal(sides, [[32.0, 1 / 16], [1.0, 1.0]])
+    ball = initial_ball(np.zeros(2), cov, 4000, np.random.default_rng(0), space, sides)
+    below, above = ball[ball[:, 0] < 0, 0], ball[ball[:, 0] > 0, 0]
+    assert 0.25 < np.sqrt(np.mean(below ** 2)) < 0.4          # 32 x 0.01 = 0.32
+    assert np.sqrt(np.mean(above ** 2)) < 1e-3                # 0.01 / 16
+    assert 0.9 < np.std(ball[:, 1]) < 1.1
+    plain = initial_ball(np.zeros(2), cov, 4000, np.random.default_rng(0), space)
+    assert np.std(plain[:, 0]) < 0.006                        # 0.5 x 0.01: the kink's flat side missed
