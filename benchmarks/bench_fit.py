@@ -16,7 +16,8 @@ data (the default configuration), on the decimated displacement (cheaper, biased
 infer.likelihood), or both side by side with their time ratio.
 --sampler: the stored run as the default ensemble (DE + independence move, the burn-in's walkers),
 as 16 independent chains from a profiled start ball (`run_walkers=16, independence_weight=0.8,
-start_profile=True`: infer.sampler), or both side by side with their time ratio. --tests: only these tests of the case's campaign.
+start_profile=True`: infer.sampler), or both side by side with their time ratio.
+--tests: only these tests of the case's campaign (e.g. one arts-d1 level).
 Targets: under 2 minutes for the twin force level, under 10 minutes for all of brfd-arts-d1, on
 the 2-core machine. Run it on a quiet machine; the figures are in the README
 (current) and docs/log-calibration.md (every run).
