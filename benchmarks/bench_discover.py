@@ -6,11 +6,13 @@ wall time, then the hit rate and false-alarm count, in one run.
     .venv/bin/python benchmarks/bench_discover.py [--full] [--refit] [--seeds 1 2] [--devices brfd mfd]
         [--effects none eccentricity ...] [--extra-effects takeup_overshoot] [--simulate-at raw|kept]
         [--also chatter --max-effects 2] [--chatter-form bursts] [--jobs 2]
-        [--samples-per-cycle 400] [--verbose]
+        [--samples-per-cycle 400] [--sampler ensemble|chains|both] [--verbose]
 
 --full: full-length records (two harmonics of ~5,000 samples and a Kobe replay, the issue's speed
 case); default: the short CI campaigns. --refit: also the MCMC refit with the named effect
-(parameters inside their 95 % intervals, rmse_after / noise scale). Not a test: figures only.
+(parameters inside their 95 % intervals, rmse_after / noise scale). --sampler: the refit's
+stored run as the default ensemble or as bench_fit.py's opt-in `chains` preset, or both side by
+side on the same campaigns (the screening runs again for each). Not a test: figures only.
 """
 from __future__ import annotations
 
@@ -24,6 +26,8 @@ from frictionuq.discrepancy.discover import discover
 from frictionuq.discrepancy.hidden import hidden_campaign
 from frictionuq.infer.fit import FitConfig
 from frictionuq.infer.sampler import SamplerConfig
+
+from bench_fit import SAMPLERS
 
 
 def main(argv=None) -> int:
@@ -61,10 +65,14 @@ def main(argv=None) -> int:
     ap.add_argument("--samples-per-cycle", type=float, default=100.0, help="the fits' decimation "
                     "(FitConfig.samples_per_cycle): default 100, the CI tests' setting (the CLI's "
                     "default is 400, which keeps every sample of these 100 Hz campaigns)")
+    ap.add_argument("--sampler", choices=["ensemble", "chains", "both"], default="ensemble")
     ap.add_argument("--verbose", action="store_true", help="also the top two candidates' gain per "
                     "held-out unit and the decision's reason")
     a = ap.parse_args(argv)
-    cfg = FitConfig(samples_per_cycle=a.samples_per_cycle, simulate_at=a.simulate_at, sampler=SamplerConfig(max_steps=3000, progress=False))
+    samplers = ["ensemble", "chains"] if a.sampler == "both" else [a.sampler]
+    cfgs = {sm: FitConfig(samples_per_cycle=a.samples_per_cycle, simulate_at=a.simulate_at,
+                          sampler=SamplerConfig(max_steps=3000, progress=False, **SAMPLERS[sm]))
+            for sm in samplers}
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for dev in a.devices:
@@ -76,42 +84,43 @@ def main(argv=None) -> int:
                                           ramp=a.ramp, also=a.also if eff else None,
                                           chatter_form=a.chatter_form, **({} if a.ramp_start is None else
                                                            {"ramp_start": a.ramp_start}))
-                    t0 = time.perf_counter()
-                    doc = discover(d / "c", d / "out", cfg, seed=1, refit=a.refit,
-                                   extra_effects=tuple(a.extra_effects), max_effects=a.max_effects,
-                                   jobs=a.jobs)
-                    secs = time.perf_counter() - t0
-                    hidden = sorted(ans["effects"])
-                    row = {"device": dev, "hidden": "+".join(hidden) or "none",
-                           "named": "+".join(doc["named_effects"]) or "none",
-                           "right": sorted(doc["named_effects"]) == hidden,
-                           "seconds": secs, "rmse_before": doc["rmse_before"],
-                           "rmse_after": doc["rmse_after"], "noise": ans["noise_sd_N"]}
-                    if a.refit and eff and row["right"]:
-                        ok = [doc["effect_parameters"][n]["q2.5"] <= v <= doc["effect_parameters"][n]["q97.5"]
-                              for q in ans["effects"].values() for n, v in q.items()
-                              if n in doc["effect_parameters"]]
-                        row["params_inside"] = f"{sum(ok)}/{len(ok)}"
-                    best = doc["candidates"][0] if doc["candidates"] else {}
-                    g = best.get("elpd_gain")
-                    row["best"] = f"{best.get('effect')} " + (f"{g:+.1f}" if g is not None else
-                                                             f"MAP {best.get('map_gain', 0):+.1f}")
-                    row["per_unit"] = {c["effect"]: [round(g, 1) for g in c["gain_per_unit"]]
-                                       for c in doc["candidates"][:2]}
-                    row["map_gain"] = {c["effect"]: round(c["map_gain"], 1) for c in doc["candidates"][:2]}
-                    rows.append(row)
-                    print(f"{dev:<5} hidden {row['hidden']:<19} named {row['named']:<19} "
-                          f"best {row['best']:<28} RMSE {row['rmse_before']:8.1f} -> "
-                          f"{row['rmse_after']:8.1f} N (noise {row['noise']:.1f} N) "
-                          f"{row.get('params_inside', ''):>5} {secs:6.1f} s", flush=True)
-                    if a.verbose:
-                        print(f"      gain per held-out unit (nats): {row['per_unit']}; MAP gain on "
-                              f"all units: {row['map_gain']}; {doc['reason']}", flush=True)
-                        for r in doc["rounds"][1:]:
-                            c = r["candidates"][0] if r["candidates"] else {}
-                            print(f"      round {r['round']}: named {r['named_effect']}; best "
-                                  f"{c.get('effect')} per unit {[round(g, 1) for g in c.get('gain_per_unit', [])]}"
-                                  f" MAP {c.get('map_gain', 0):+.1f}; {r['reason']}", flush=True)
+                    for sm in samplers:
+                        t0 = time.perf_counter()
+                        doc = discover(d / "c", d / f"out-{sm}", cfgs[sm], seed=1, refit=a.refit,
+                                       extra_effects=tuple(a.extra_effects), max_effects=a.max_effects,
+                                       jobs=a.jobs)
+                        secs = time.perf_counter() - t0
+                        hidden = sorted(ans["effects"])
+                        row = {"device": dev, "hidden": "+".join(hidden) or "none",
+                               "named": "+".join(doc["named_effects"]) or "none",
+                               "right": sorted(doc["named_effects"]) == hidden,
+                               "seconds": secs, "rmse_before": doc["rmse_before"],
+                               "rmse_after": doc["rmse_after"], "noise": ans["noise_sd_N"]}
+                        if a.refit and eff and row["right"]:
+                            ok = [doc["effect_parameters"][n]["q2.5"] <= v <= doc["effect_parameters"][n]["q97.5"]
+                                  for q in ans["effects"].values() for n, v in q.items()
+                                  if n in doc["effect_parameters"]]
+                            row["params_inside"] = f"{sum(ok)}/{len(ok)}"
+                        best = doc["candidates"][0] if doc["candidates"] else {}
+                        g = best.get("elpd_gain")
+                        row["best"] = f"{best.get('effect')} " + (f"{g:+.1f}" if g is not None else
+                                                                 f"MAP {best.get('map_gain', 0):+.1f}")
+                        row["per_unit"] = {c["effect"]: [round(g, 1) for g in c["gain_per_unit"]]
+                                           for c in doc["candidates"][:2]}
+                        row["map_gain"] = {c["effect"]: round(c["map_gain"], 1) for c in doc["candidates"][:2]}
+                        rows.append(row)
+                        print(f"{dev + ('/' + sm if len(samplers) > 1 else ''):<5} hidden {row['hidden']:<19} named {row['named']:<19} "
+                              f"best {row['best']:<28} RMSE {row['rmse_before']:8.1f} -> "
+                              f"{row['rmse_after']:8.1f} N (noise {row['noise']:.1f} N) "
+                              f"{row.get('params_inside', ''):>5} {secs:6.1f} s", flush=True)
+                        if a.verbose:
+                            print(f"      gain per held-out unit (nats): {row['per_unit']}; MAP gain on "
+                                  f"all units: {row['map_gain']}; {doc['reason']}", flush=True)
+                            for r in doc["rounds"][1:]:
+                                c = r["candidates"][0] if r["candidates"] else {}
+                                print(f"      round {r['round']}: named {r['named_effect']}; best "
+                                      f"{c.get('effect')} per unit {[round(g, 1) for g in c.get('gain_per_unit', [])]}"
+                                      f" MAP {c.get('map_gain', 0):+.1f}; {r['reason']}", flush=True)
     hits = sum(r["right"] for r in rows if r["hidden"] != "none")
     n_eff = sum(r["hidden"] != "none" for r in rows)
     fa = sum(r["named"] != "none" for r in rows if r["hidden"] == "none")
