@@ -158,7 +158,7 @@ def test_profile_sides_find_a_one_sided_kink_and_widen_the_start_ball_on_its_fla
 
     space = SimpleNamespace(lo=np.array([-50.0, -50.0]), hi=np.array([50.0, 50.0]))
     cov = np.diag([1e-4, 1.0])
-    sides = profile_sides(log_prob, np.zeros(2), cov, space)
+    sides = profile_sides(log_prob, np.zeros(2), float(log_prob(np.zeros(2))[0]), cov, space)
     assert np.array_equal(sides, [[32.0, 1 / 16], [1.0, 1.0]])
     ball = initial_ball(np.zeros(2), cov, 4000, np.random.default_rng(0), space, sides)
     below, above = ball[ball[:, 0] < 0, 0], ball[ball[:, 0] > 0, 0]

@@ -194,9 +194,9 @@ def fit_proposal(chain: np.ndarray, log_prob: np.ndarray) -> Proposal:
     return Proposal.fit(pooled_states(chain, log_prob)[0])
 
 
-def _independent(cfg: SamplerConfig, proposal) -> bool:
+def _independent(cfg: SamplerConfig) -> bool:
     """Whether the stored run moves each walker on its own (module docstring)."""
-    return cfg.run_walkers is not None and cfg.independence and proposal is not None
+    return cfg.run_walkers is not None and cfg.independence
 
 
 def _moves(cfg: SamplerConfig, proposal=None, stored: bool = False):
@@ -205,7 +205,7 @@ def _moves(cfg: SamplerConfig, proposal=None, stored: bool = False):
     if proposal is None or not cfg.independence:
         return [(de, 0.7), (emcee.moves.DEMove(gamma0=1.0), 0.1), (emcee.moves.DESnookerMove(), 0.2)]
     w = cfg.independence_weight if stored else 0.5
-    if stored and _independent(cfg, proposal):
+    if stored and _independent(cfg):
         moves = [(IndependenceMove(proposal), w), (proposal.random_walk(), 1.0 - w)]
         return [m for m in moves if m[1] > 0]
     rest = 1.0 - w
@@ -276,7 +276,7 @@ def sample(logpost: LogPosterior, scales: RecordScales, seed: int,
     ndim = sp.ndim
     nw = _nwalkers(cfg, ndim)
     # the stored run's walkers: the burn-in's ensemble, or run_walkers independent chains
-    nrun = cfg.run_walkers if cfg.run_walkers is not None and cfg.independence else nw
+    nrun = cfg.run_walkers if _independent(cfg) else nw
     t0 = time.perf_counter()
     rng = np.random.default_rng(seed)
     target = UnboundedPosterior(logpost, stats=True)
@@ -292,7 +292,8 @@ def sample(logpost: LogPosterior, scales: RecordScales, seed: int,
         log(f"resuming from stored step {resumed}")
     else:
         cov = gauss_newton_cov(logpost, theta_map)
-        sides = profile_sides(logpost.log_prob, theta_map, cov, sp) if cfg.start_profile else None
+        sides = (profile_sides(logpost.log_prob, theta_map, lp_map, cov, sp)
+                 if cfg.start_profile else None)
         if sides is not None:
             log("start ball from profiles: half-widths (Gauss-Newton sds) below / above the MAP "
                 + ", ".join(f"{n} {lo:g}/{hi:g}" for n, (lo, hi) in zip(sp.names, sides)))

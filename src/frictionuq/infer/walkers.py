@@ -17,12 +17,13 @@ def ball_sd(cov, space) -> np.ndarray:
     return np.sqrt(np.clip(np.diag(cov), (1e-8 * width) ** 2, (0.1 * width) ** 2))
 
 
-def profile_sides(log_prob, theta_map, cov, space) -> np.ndarray:
+def profile_sides(log_prob, theta_map, lp_map, cov, space) -> np.ndarray:
     """(ndim, 2) half-widths of the start ball below and above the MAP, in ball_sd units, from
     one-dimensional profiles: each parameter alone is moved from the MAP by PROFILE_STEPS
     (1/8 to 64 sds) each way, one batch of log_prob (box coordinates; a point outside the box
     counts as -inf); a side reaches the largest step up to which every step is within
-    PROFILE_DROP nats of the MAP (a Gaussian's drop at 2 sd), and the half-width is half of it.
+    PROFILE_DROP nats of the MAP's `lp_map` (find_map's, not evaluated again; a Gaussian's drop
+    at 2 sd), and the half-width is half of it.
     Why: the Gauss-Newton covariance is a local curvature; where the log-posterior has a kink at
     the MAP it can be far off on one side. BRFD twin 267 N: d3 is 40 times wider than its
     Gauss-Newton sd below the MAP (-0.18 nats at 64 sds) and falls by 94 nats within one sd above
@@ -38,8 +39,7 @@ def profile_sides(log_prob, theta_map, cov, space) -> np.ndarray:
     lp = np.full(flat.shape[0], -np.inf)
     if inside.any():
         lp[inside] = log_prob(flat[inside])
-    lp0 = log_prob(np.asarray(theta_map, float)[None])[0]
-    ok = (lp0 - lp.reshape(D, 2, K)) <= PROFILE_DROP          # NaN or -inf: not within
+    ok = (lp_map - lp.reshape(D, 2, K)) <= PROFILE_DROP          # NaN or -inf: not within
     n_ok = np.argmin(np.concatenate([ok, np.zeros((D, 2, 1), bool)], axis=2), axis=2)
     return PROFILE_STEPS[np.maximum(n_ok - 1, 0)] / 2.0
 
