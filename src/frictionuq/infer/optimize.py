@@ -7,7 +7,8 @@ lands near it. The search therefore works in three steps:
    after a reversal over which the force recovers, a stiff pre-sliding), random perturbations of
    it, the best of a batch of prior draws, and the best point of a differential-evolution search
    over the whole prior box on the coarsened records (`global_start`: least squares from a
-   start near the answer can still end in a wrong basin, see there);
+   start near the answer can still end in a wrong basin, see there), run until two runs agree
+   (`_global_searches`);
 2. from each local start, least squares on coarsened copies of the records (every k-th sample,
    <= 800 per record, the model run on the coarse displacement: cheap); all starts ranked on
    copies that run the model on the kept samples and compare every k-th output
@@ -136,11 +137,11 @@ def _log_prob_batched(logpost: LogPosterior, X: np.ndarray, batch: int = 256) ->
     return np.concatenate([logpost.log_prob(X[i:i + batch]) for i in range(0, len(X), batch)])
 
 
-def global_start(coarse: LogPosterior, theta0: np.ndarray, rng: np.random.Generator,
+def global_start(coarse: LogPosterior, theta0: np.ndarray | None, rng: np.random.Generator,
                  popsize: int = 8, maxiter: int = 300) -> tuple[np.ndarray, int]:
     """Best point of a differential-evolution search (scipy, vectorised: each generation is one
-    batch of simulations) of the coarsened log-posterior over the prior box, seeded with theta0.
-    Returns (theta, number of generations run).
+    batch of simulations) of the coarsened log-posterior over the prior box, seeded with theta0
+    (None: a Sobol population alone). Returns (theta, number of generations run).
 
     Why: the take-up parameters make the least-squares landscape rugged. On a clean short BRFD
     campaign (hidden-brfd-7) least squares from the generating values with only d3 changed from
@@ -151,16 +152,51 @@ def global_start(coarse: LogPosterior, theta0: np.ndarray, rng: np.random.Genera
     nats gained; MFD seeds 4 and 7 were already there); on the real 36 lb sines of quick.toml it
     gained 39 nats. It is not certain: on a short 66 N record 8 of 10 seeds reached the mode
     (best1bin; rand1bin, best2bin 0, currenttobest1bin 4, no x0 or Latin hypercube 7, popsize
-    16 8), so find_map runs it more than once."""
+    16 8), so find_map runs it more than once (_global_searches)."""
     def nlp(X):
         v = _log_prob_batched(coarse, np.atleast_2d(X.T))
         return np.where(np.isfinite(v), -v, 1e300)
     sp = coarse.space
     r = differential_evolution(nlp, list(zip(sp.lo, sp.hi)), popsize=popsize, maxiter=maxiter,
                                vectorized=True, updating="deferred", polish=False, rng=rng,
-                               x0=clip_in(sp, theta0), init="sobol", tol=0.0, atol=0.5,
+                               x0=None if theta0 is None else clip_in(sp, theta0), init="sobol",
+                               tol=0.0, atol=0.5,
                                mutation=(0.5, 1.0), recombination=0.9)
     return clip_in(sp, r.x), int(r.nit)
+
+
+#: find_map's differential-evolution searches (_global_searches): with n_global >= 2, more runs
+#: (GLOBAL_MAX_RUNS in all at most) while the best two results differ by more than GLOBAL_AGREE
+#: nats on the ranking copies
+GLOBAL_AGREE = 2.0
+GLOBAL_MAX_RUNS = 5
+
+
+def _global_searches(ranked: LogPosterior, th_h: np.ndarray, rng: np.random.Generator,
+                     n_global: int) -> list[tuple[float, np.ndarray, int]]:
+    """find_map's differential-evolution searches: (log-posterior on `ranked`, point,
+    generations) of each run. The first run is seeded with the heuristic start th_h, the others
+    start from their Sobol population alone; with n_global >= 2, runs are added (up to
+    GLOBAL_MAX_RUNS) until the best two agree within GLOBAL_AGREE nats: a basin reached by two
+    independent runs.
+
+    Why (2026-11-28): on the short 66 N BRFD record of tests/test_stat_recovery.py two runs,
+    both seeded with the heuristic start, both ended in wrong basins for rng seeds 2 and 9 of
+    1-10 (the better 558 nats below the truth, with sigma0 and k3 at the top of their prior).
+    With the later runs unseeded, 19 of 20 seeds reached the mode with two runs; with the agreement rule
+    20 of 20 (2.9 runs on average), and the 35, 53, 133 and 267 N records 40 of 40 (2.0-2.8
+    runs). On the real ARTS levels tried (arts-d2 0 and 36 lb, arts-d1 35 and 70 lb) the first
+    two runs agree (within 0.1-1.9 nats): no extra run."""
+    out = []
+
+    def disagree() -> bool:
+        top = sorted((z[0] for z in out), reverse=True)
+        return top[0] - top[1] > GLOBAL_AGREE
+
+    while len(out) < n_global or (n_global >= 2 and len(out) < GLOBAL_MAX_RUNS and disagree()):
+        th_g, gens = global_start(ranked, None if out else th_h, rng)
+        out.append((float(ranked.log_prob(th_g[None, :])[0]), th_g, gens))
+    return out
 
 
 def find_map(logpost: LogPosterior, scales: RecordScales, rng: np.random.Generator,
@@ -235,11 +271,9 @@ def _multi_start(logpost, scales, rng, n_random, n_prior, n_draws, log, n_global
         th, _ = least_squares_fit(coarse, s, max_nfev=100)
         lp_th, lp_s = ranked.log_prob(np.vstack([th, s]))
         results.append((float(lp_th), th, False) if lp_th >= lp_s else (float(lp_s), s, False))
-    generations = []
-    for _ in range(n_global):     # independent runs: one reached the mode in 7-8 of 10 seeds
-        th_g, gens = global_start(ranked, th_h, rng)
-        results.append((float(ranked.log_prob(th_g[None, :])[0]), th_g, True))
-        generations.append(gens)
+    searches = _global_searches(ranked, th_h, rng, n_global)
+    results += [(lp_g, th_g, True) for lp_g, th_g, _ in searches]
+    generations = [gens for _, _, gens in searches]
     results.sort(key=lambda z: -z[0])
     ranked_lps = [z[0] for z in results]
     start_lps = []      # the refined starts' log-posteriors on the full records
@@ -262,7 +296,7 @@ def _multi_start(logpost, scales, rng, n_random, n_prior, n_draws, log, n_global
                 fine.append((float(logpost.log_prob(th[None, :])[0]), th, r))
         results = sorted(fine, key=lambda z: -z[0])
     best_lp, best = results[0][:2]
-    log(f"least squares from {len(starts)} starts and {n_global} global searches (log-posteriors "
+    log(f"least squares from {len(starts)} starts and {len(searches)} global searches (log-posteriors "
         f"on the ranking copies, best first: "
         f"{[round(v, 1) for v in ranked_lps[:4]]}); refined best {best_lp:.6g}")
     return best, best_lp, {"start": "search", "starts_log_prob_ranked": ranked_lps,
