@@ -109,7 +109,8 @@ class SamplerConfig:
     ess_min: float = 400.0
     n_random_starts: int = 6
     n_prior_starts: int = 4
-    n_global_starts: int = 2          # differential-evolution runs (optimize.global_start)
+    n_global_starts: int = 2          # differential-evolution runs: at least this many; with 2+,
+                                      # more until two agree (optimize._global_searches)
     independence: bool = True         # add the independence move fitted to the burn-in
     independence_weight: float = 0.5  # its share of the stored run's moves
     run_walkers: int | None = None    # stored run: None = the burn-in's ensemble; n = n independent chains
