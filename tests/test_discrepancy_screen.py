@@ -386,3 +386,47 @@ def test_screening_on_two_processes_gives_the_serial_results(tmp_path):
     with pytest.raises(InputError, match="jobs"):
         discover(tmp_path / "c", tmp_path / "out", jobs=0)
     assert not (tmp_path / "out").exists()
+
+
+#: the full-length BRFD campaign with a hidden stage2_nonlinear (seed 11): the baseline's MAP as
+#: find_map found it (2026-11-28, global searches until two agree; log-posterior -50,156.5) and
+#: the end of one of its differential-evolution searches (-50,995.8), in the lower basin where
+#: the effect belongs
+_BASE_MAP_BRFD_S2_11 = {"fc_fwd": 22685.804392207065, "fc_bwd": 13430.748544670307,
+    "fs_fwd": 21787.403897677108, "fs_bwd": 14243.424891628409, "v_s": 0.0010865024285662194,
+    "sigma0": 6042744.084690425, "sigma1": 22.617932990277964, "sigma2": 730.2401608743289,
+    "k2": 258328.79216866734, "d2": 0.0014530098308689818, "k3": 16007075.14477546,
+    "d3": 0.0006079815793322667, "w": 0.00020003988964349928, "force_offset": 22.244322779434103}
+_BASE_DE_BRFD_S2_11 = {"fc_fwd": 22629.300623418116, "fc_bwd": 13436.227692640658,
+    "fs_fwd": 23462.85785328189, "fs_bwd": 14306.376497732272, "v_s": 0.0007038793066964975,
+    "sigma0": 32178685.124382596, "sigma1": 83.42721797367334, "sigma2": 245.93993377389822,
+    "k2": 338365.94694772, "d2": 0.0014531524064839135, "k3": 15952863.02038701,
+    "d3": 0.0005845973276051419, "w": 0.00020079077588742577, "force_offset": 29.008360467214242}
+
+
+@pytest.mark.slow
+def test_candidate_search_starts_from_the_baselines_global_searches(tmp_path):
+    """A candidate's search also starts from the ends of the baseline's differential-evolution
+    searches (base "global_points", candidate.candidate_map): where the baseline's best basin
+    absorbs the hidden effect, a basin it left can be where the effect belongs. On this campaign
+    every other start stays in the baseline's basin (+0.0 nats: not screened further, and
+    discover said none); from the search's end +102 (the fit before 2026-11-28, from a baseline
+    in the lower basin: +227.8 over that baseline). Deterministic, about 60 s."""
+    from frictionuq.discrepancy import fits as F
+    from frictionuq.infer.fit import FitConfig
+    hidden_campaign(tmp_path / "c", "brfd", "stage2_nonlinear", seed=11, short=False)
+    tests = list(load_campaign(tmp_path / "c").tests)
+    cfg = FitConfig(samples_per_cycle=100)
+    lp0, _ = F.logpost_for(tests, (), cfg)
+    th_b = lp0.space.to_theta(_BASE_MAP_BRFD_S2_11)
+    lp_b = F.log_prob(lp0, th_b)
+    lp1, scales = F.logpost_for(tests, ("stage2_nonlinear",), cfg)
+    gain = {}
+    for points in ([], [lp0.space.to_theta(_BASE_DE_BRFD_S2_11)]):
+        base = {"space": lp0.space, "all": th_b, "log_prob": lp_b, "global_points": points}
+        _, lp_c = candidate.candidate_map(lp1, base, np.random.default_rng([1, 17, 1]), scales)
+        gain[len(points)] = lp_c - lp_b
+    print(f"baseline {lp_b:.1f}; candidate gain without the search's end {gain[0]:+.1f}, "
+          f"with it {gain[1]:+.1f}")
+    assert gain[0] < 20.0          # the case: the other starts stay in the baseline's basin
+    assert gain[1] > 80.0

@@ -76,7 +76,8 @@ def test_the_map_search_never_ends_below_a_start_it_refined(tmp_path, monkeypatc
     kept at 50 Hz or more, the plain 3-stage model: the best global start had -26,819.5 on the
     full records and find_map returned -27,422.5, its best refinement (the polish gained nothing:
     scipy's bounded Powell wandered off to -28,965, see optimize.polish). Now -26,742.5: the start
-    kept, and the polish's best point. Deterministic, about 30 s."""
+    kept, and the polish's best point. Since 2026-11-28 the global runs go on until two agree (4
+    here). Deterministic, about 30 s."""
     from dataclasses import replace
     from frictionuq.campaign import load_campaign
     from frictionuq.discrepancy import fits as F
@@ -97,7 +98,9 @@ def test_the_map_search_never_ends_below_a_start_it_refined(tmp_path, monkeypatc
     _, lp_map, info = optimize.find_map(lp, scales, np.random.default_rng([1, 17, 0]))
     lp_global = lp.log_prob(np.array(found))
     print(f"MAP {lp_map:.1f}; global starts on the full records {np.round(lp_global, 1)}")
-    assert len(found) == 2 and info["start"] == "search"
+    # two global runs at least; more (optimize.GLOBAL_MAX_RUNS at most) until the best two agree
+    assert 2 <= len(found) <= optimize.GLOBAL_MAX_RUNS and info["start"] == "search"
+    assert len(found) == len(info["global_generations"])
     assert lp_map >= float(np.max(lp_global)) - 1e-6
     assert lp_map >= max(info["refined_starts_log_prob"]) - 1e-6
 

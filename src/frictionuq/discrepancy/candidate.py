@@ -1,5 +1,6 @@
 """A candidate's MAP: the baseline plus one effect, searched from the baseline's MAP, prior draws
-of the effect's parameters, find_map's heuristic starts and a differential-evolution search
+of the effect's parameters, find_map's heuristic starts, the ends of the baseline's global
+searches and a differential-evolution search
 (screen.screen_level runs one per candidate, side by side in workers.Workers)."""
 from __future__ import annotations
 
@@ -46,7 +47,17 @@ def candidate_map(logpost, base: dict, rng, scales) -> tuple[np.ndarray, float]:
     the baseline's MAP, and the candidate stayed there with the effect off (the baseline's MAP
     plus 0.0; discover named it with +511.6 after the cross refits, RMSE 563 N against a noise of
     180.5 N); ranked on the full records, +923.1 and +968.1 (the fit from the generating values:
-    +958.9), RMSE 172.6 N (test_discrepancy_screen)."""
+    +958.9), RMSE 172.6 N (test_discrepancy_screen).
+
+    And from the ends of the baseline's own differential-evolution searches (base
+    "global_points", find_map's), the effect at its default, refined on the full records. Seen on
+    the full-length BRFD campaign with a hidden stage2_nonlinear (seed 11, 2026-11-28): once
+    find_map ran its global searches until two agree, the baseline's MAP rose 124 nats (RMSE
+    184.9 -> 177.9 N) into a basin where its backlash absorbs the curved stage-2 line, and every
+    start of the candidate stayed there (+0.0 nats; before, from the lower basin, +227.8 and
+    named with +596.6 held out). Two of the baseline's four searches had ended in that lower
+    basin (-50,973 and -50,996); with the effect refined from them, -50,073 and -50,054.5, the
+    candidate's own search reached it in 1 of 5 runs."""
     sp = logpost.space
     coarse = coarsened(logpost, simulate="coarse")   # the screening's calibration
     th0 = F.theta_in(sp, base["space"], base["all"])
@@ -65,6 +76,9 @@ def candidate_map(logpost, base: dict, rng, scales) -> tuple[np.ndarray, float]:
         for _ in range(N_CANDIDATE_GLOBAL):
             th_g, _ = global_start(ranked, first[order[0]], rng)
             refine.append(th_g)
+    # the baseline's own global searches' ends, with the effect at its default: basins the
+    # baseline left for a better one can be where the effect belongs
+    refine += [F.theta_in(sp, base["space"], g) for g in base.get("global_points", [])]
     best, best_lp = th0, F.log_prob(logpost, th0)
     for s0 in refine:
         th = F.white_fit(logpost, s0, rounds=3)

@@ -189,9 +189,11 @@ def screen_level(level_tests, cfg: FitConfig, seed: int, effects=None, log=None,
     lp_all, scales = F.logpost_for(level_tests, base_effects, cfg)
     start = None if base_start is None else lp_all.space.to_theta(
         {n: base_start[n] for n in lp_all.space.names})
-    th_all, lpmap, _ = find_map(lp_all, scales, np.random.default_rng([seed, 17, len(base_effects)]),
-                                n_random=1, n_prior=1, start=start)
-    base_theta = {"space": lp_all.space, "all": th_all, "log_prob": lpmap}
+    th_all, lpmap, info = find_map(lp_all, scales,
+                                   np.random.default_rng([seed, 17, len(base_effects)]),
+                                   n_random=1, n_prior=1, start=start)
+    base_theta = {"space": lp_all.space, "all": th_all, "log_prob": lpmap,
+                  "global_points": info.get("global_points", [])}
     fitted["baseline"] = [lp_all, th_all, lpmap, time.perf_counter() - t0]
     # each candidate from the baseline's MAP (its effect at the default and at prior draws), the
     # heuristic starts and a global search (candidate.candidate_map), side by side in the workers

@@ -301,7 +301,8 @@ def _multi_start(logpost, scales, rng, n_random, n_prior, n_draws, log, n_global
         f"{[round(v, 1) for v in ranked_lps[:4]]}); refined best {best_lp:.6g}")
     return best, best_lp, {"start": "search", "starts_log_prob_ranked": ranked_lps,
                            "refined_starts_log_prob": [float(v) for v in start_lps],
-                           "heuristic": h0, "global_generations": generations}
+                           "heuristic": h0, "global_generations": generations,
+                           "global_points": [th_g for _, th_g, _ in searches]}
 
 
 def polish(logpost: LogPosterior, theta: np.ndarray, lp: float,
