@@ -52,3 +52,45 @@ def test_evidence_ratio_matches_monte_carlo(tmp_path):
     # measured: evidence ratio -5782.87, Monte Carlo -5783.50 (ESS 452); the heights alone
     # (no Occam factor) -5781.69 are 1.81 off, and so would be a log det term of twice its size
     assert abs(score - mc) < 1.0, (score, mc, heights)
+
+
+
+#: the baseline's MAP on the short BRFD campaign with a hidden stage2_nonlinear (seed 11) as
+#: find_map returned it at f5a2177 (2026-11-28): d3 a hair below a 180-nat drop of the
+#: log-posterior (a step of 1e-5 of its box up)
+EDGE_MAP = {"fc_fwd": 22647.443836910785, "fc_bwd": 13390.65918307448,
+            "fs_fwd": 20383.01280409676, "fs_bwd": 14071.535631261155,
+            "v_s": 0.0009954442246377317, "sigma0": 5610622.401341649,
+            "sigma1": 1925.3747833240045, "sigma2": 2239.3781360137145,
+            "k2": 308493.39095160045, "d2": 0.0014715932836847335, "k3": 16193918.17628524,
+            "d3": 0.0005809783137193793, "w": 0.0002017211399388869,
+            "force_offset": 7.108931791993311}
+
+
+@pytest.mark.xfail(strict=True, reason="known (2026-11-28): the Laplace evidence's forward-"
+                   "difference Jacobian (step 1e-6 of each box) misreads d3's curvature next to a "
+                   "drop of the log-posterior; issue 5, docs/log-discrepancy.md")
+def test_laplace_evidence_is_stable_next_to_a_drop(tmp_path):
+    """Two points 3e-7 of d3's box apart, log-posteriors 0.00005 nats apart (EDGE_MAP and its
+    local refit, fits.refit), must have Laplace evidences within 1 nat. They differ by 13 nats
+    (-22,345.4 and -22,358.4): the refit point's forward step in d3 crosses the drop (a huge
+    slope), EDGE_MAP's does not (almost none; d3's sd 0.085 of its box against 0.0015-0.0024 from
+    the log-posterior's profile over 1e-3 to 3e-3 of it). The held-out score of every unit moves
+    with it: the short stage2_nonlinear campaign of seed 11 was named (+48.8 nats) or not (+11.7)
+    by where the MAP search stopped. Strict: it fails today; when the evidence is mended this
+    test passes and the xfail must go. Deterministic, about 30 s."""
+    hidden_campaign(tmp_path / "c", "brfd", "stage2_nonlinear", seed=11, short=True)
+    tests = list(load_campaign(tmp_path / "c").tests)
+    lp, _ = fits.logpost_for(tests, (), FitConfig(samples_per_cycle=100))
+    sp = lp.space
+    th = sp.to_theta(EDGE_MAP)
+    i = sp.names.index("d3")
+    up = th.copy()
+    up[i] += 1e-5 * (sp.hi[i] - sp.lo[i])
+    assert fits.log_prob(lp, up) < fits.log_prob(lp, th) - 100       # the case is at a drop
+    th_r = fits.refit(lp, th)
+    assert np.max(np.abs(th_r - th) / (sp.hi - sp.lo)) < 1e-5
+    assert abs(fits.log_prob(lp, th_r) - fits.log_prob(lp, th)) < 0.01
+    ev, ev_r = log_evidence(lp, th), log_evidence(lp, th_r)
+    print(f"Laplace evidence {ev:.2f} at EDGE_MAP, {ev_r:.2f} at its refit")
+    assert abs(ev - ev_r) < 1.0
