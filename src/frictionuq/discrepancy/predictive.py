@@ -41,5 +41,5 @@ def log_evidence(logpost: LogPosterior, theta: np.ndarray) -> float:
     lp = log_prob(logpost, theta)
     if not np.isfinite(lp):
         return -math.inf
-    sign, logdet = np.linalg.slogdet(gauss_newton_cov(logpost, theta))
+    sign, logdet = np.linalg.slogdet(gauss_newton_cov(logpost, theta, ignore_jumps=True))
     return lp + 0.5 * logdet if sign > 0 else -math.inf
