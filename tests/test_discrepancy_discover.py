@@ -21,9 +21,11 @@ from frictionuq.discrepancy.hidden import hidden_campaign
     ("brfd", "speed_weakening", 11),
     # ("brfd", "stage2_nonlinear", 11) was here until 2026-11-28: a favourable draw (named in 2 of
     # 18 short campaigns), and named or not by a 13-nat error of the Laplace evidence next to a
-    # drop of the log-posterior in d3 (+48.8 or +11.7 nats held out with the same MAP height):
-    # test_discrepancy_predictive.py::test_laplace_evidence_is_stable_next_to_a_drop (strict
-    # xfail). The candidate search that now names it on the full-length campaign:
+    # drop of the log-posterior in d3 (+48.8 or +11.7 nats held out with the same MAP height).
+    # The evidence is mended (test_discrepancy_predictive.py::
+    # test_laplace_evidence_is_stable_next_to_a_drop; the case is named again, +38.8 +- 8.1 nats,
+    # 400 s), and it stays out of CI for time: a favourable draw shows little that the two tests
+    # of its pieces do not. The candidate search that names it on the full-length campaign:
     # test_discrepancy_screen.py::test_candidate_search_starts_from_the_baselines_global_searches
 ])
 def test_discover_names_the_hidden_effect_or_none(tmp_path, device, effect, seed):
