@@ -10,8 +10,9 @@ level's Space), and each by Laplace's method at its own maximum:
 Sigma the Gauss-Newton covariance at the MAP (infer.localfit.gauss_newton_cov; the 2 pi terms
 cancel in the difference), its Jacobian stepped both ways with the smaller slope kept per
 parameter (ignore_jumps: a step across a jump of the sampled model, next to a drop of the
-log-posterior in d3, moved the evidence by 13 nats within 3e-7 of d3's box). The noise sd and AR(1) phi of each record are integrated out in the
-log-posterior itself (infer.noisemodel); the force offset is the fit's shared parameter.
+log-posterior in d3, moved the evidence by 13 nats within 3e-7 of d3's box). The noise sd and
+AR(1) phi of each record are integrated out in the log-posterior itself (infer.noisemodel); the
+force offset is the fit's shared parameter.
 
 Why the ratio of evidences and not an integral over the training fit's Gaussian approximation
 (the two forms used before, measured 2026-11-25 on short hidden-effect campaigns): two short
