@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .environment import environment
 from . import atomic, published
 from .errors import InputError
 from .fitdir import campaign_applied_unit, campaign_of, load_posterior, load_summary
@@ -209,7 +210,8 @@ def write_advantage(fit_dir, out_dir=None) -> pd.DataFrame:
         raise InputError(f"--out {out}: exists and is not a folder")
     summary = load_summary(fit_dir)
     camp = campaign_of(summary)
-    doc = {"package_version": __version__, "fit_dir": str(fit_dir), "campaign": summary.get("campaign"),
+    doc = {"package_version": __version__, "environment": environment(),
+           "fit_dir": str(fit_dir), "campaign": summary.get("campaign"),
            "device": getattr(camp, "device", None), "geometry": getattr(camp, "geometry", None),
            "formula": "C = fc_dir / applied; mu = ln(1 + C damping_radius / drum_radius) / "
                       "radians(wrap_deg) (BRFD Eq. 10 inverted)",

@@ -6,6 +6,7 @@ tables or figures back, so an ArviZ API change touches this file only. ArviZ is 
 """
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +26,7 @@ def build(posterior: dict, *, sample_stats: dict | None = None, log_likelihood: 
             groups[name] = g
     dt = azb.from_dict(groups, dims=dims or {}, coords=coords or {})
     for k, v in (attrs or {}).items():
-        dt.attrs[k] = v if isinstance(v, (str, int, float)) else str(v)
+        dt.attrs[k] = v if isinstance(v, (str, int, float)) else json.dumps(v, default=str)
         dt["posterior"].attrs[k] = dt.attrs[k]
     return dt
 

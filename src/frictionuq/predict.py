@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .environment import environment
 from . import atomic, params as P
 from .errors import InputError, check_draws, check_seed
 from .draws import Draws, choose_draws
@@ -287,7 +288,8 @@ def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied
     pred = predict(fit_dir, a_si, t, x, eps=eps, n_draws=n_draws, seed=seed,
                    include_offset=include_offset, applied_signal=sig, samples_per_cycle=spc,
                    summary=summary, drive_lowpass=lowpass_mult)
-    meta = {"package_version": __version__, "fit_dir": str(fit_dir), "campaign": summary.get("campaign"),
+    meta = {"package_version": __version__, "environment": environment(),
+            "fit_dir": str(fit_dir), "campaign": summary.get("campaign"),
             "applied": {"si": a_si, "si_unit": U.si_unit_of_applied(unit), "value": value,
                         "unit": unit, "unit_source": unit_src},
             "draws_source": pred.draws.source, "fits": pred.draws.fits, "model": pred.draws.model,

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .environment import environment
 from . import atomic
 from .errors import InputError
 from .model import simulate
@@ -62,7 +63,8 @@ def simulate_files(params_path, input_path, out_path, model: str = "three_stage"
     from . import __version__
     from .campaign import sha256_file
     atomic.write_json(f"{out_path}.json", {
-        "package_version": __version__, "command": "simulate", "model": model, "eps_m": eps,
+        "package_version": __version__, "environment": environment(),
+        "command": "simulate", "model": model, "eps_m": eps,
         "parameters": params, "effects": effects or {},
         "params_file": str(params_path), "params_sha256": sha256_file(params_path),
         "input_file": str(input_path), "input_sha256": sha256_file(input_path),

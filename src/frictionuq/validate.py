@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .environment import environment
 from . import atomic
 from .errors import InputError, check_draws, check_seed
 
@@ -98,7 +99,8 @@ def validate(fit_dir, campaign_path, test_ids, out_dir, *, n_draws: int = 400, s
                     f"({p.draws.source})")
         log(f"{tid}: coverage95 {s['coverage95']:.3f}, coverage50 {s['coverage50']:.3f}, "
             f"RMSE {s['rmse_N']:.4g} N, NRMSE {s['nrmse']:.4f}")
-    doc = {"package_version": __version__, "fit_dir": str(fit_dir), "campaign": camp.name,
+    doc = {"package_version": __version__, "environment": environment(),
+           "fit_dir": str(fit_dir), "campaign": camp.name,
            "campaign_path": str(campaign_path), "seed": seed, "n_draws": n_draws,
            "units": "force N, applied_si N or Pa, eps m; coverage fractions of samples; nrmse = rmse / "
                     "peak-to-peak measured force",

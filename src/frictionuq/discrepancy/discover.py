@@ -40,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..environment import environment
 from .. import atomic
 from ..errors import InputError, check_seed
 from ..infer.fit import FitConfig, FitSpec, jsonable, plan, run_fit
@@ -230,7 +231,8 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
     final_maps = [lv["models"][last["named"] if named_all else "baseline"]["map"]
                   for lv in last["levels"]]
     rmse_before = float(np.mean([lv["models"]["baseline"]["rmse_map"] for lv in levels]))
-    doc = {"package_version": __version__, "campaign": camp.name, "campaign_path": str(campaign_path),
+    doc = {"package_version": __version__, "environment": environment(),
+           "campaign": camp.name, "campaign_path": str(campaign_path),
            "seed": seed, "config": cfg.to_json(), "named_effect": named,
            "named_effects": named_all, "reason": rounds[0]["reason"],
            "decision_rule": screen.RULE, "extra_effects": list(extra_effects),

@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..environment import environment
 from .. import atomic, params as P
 from ..errors import InputError, check_seed
 
@@ -261,7 +262,7 @@ def write_compare(out_dir, campaign: str, campaign_path, configs: dict, levels: 
                   seed: int, offset: str, kinds=None, tests=None) -> dict:
     """Write out_dir/compare.json and compare.csv (atomically) for compared levels."""
     from .. import __version__
-    result = {"package_version": __version__, "campaign": campaign,
+    result = {"package_version": __version__, "environment": environment(), "campaign": campaign,
               "campaign_path": str(campaign_path), "seed": seed, "offset": offset,
               "config": {"models": {n: c.to_json() for n, c in configs.items()},
                          "kinds": list(kinds) if kinds else None,

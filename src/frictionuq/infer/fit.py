@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..environment import environment
 from .. import atomic, params as P
 from ..errors import InputError, check_seed
 from ..units import from_si
@@ -202,14 +203,16 @@ def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True
     post = outputs.posterior_draws(logpost, res, rng)
     pred = outputs.predictive(logpost, post, spec.config.n_predictive, rng)
     dt = outputs.datatree(logpost, post, pred, attrs={
-        "package_version": __version__, "campaign": campaign_name, "fit": spec.id,
+        "package_version": __version__, "environment": environment(),
+        "campaign": campaign_name, "fit": spec.id,
         "seed": spec.config.seed, "config": spec.config.to_json()})
     from .. import azadapter
     azadapter.save(dt, fdir / "posterior.nc")
     entry = outputs.summary_entry(spec, logpost, res, dt, post, pred)
     entry["seconds"] = time.perf_counter() - t0
     entry["prior_predictive_passed"] = ppc["passed"]
-    record = {"package_version": __version__, "campaign": campaign_name, "fit": spec.id,
+    record = {"package_version": __version__, "environment": environment(),
+              "campaign": campaign_name, "fit": spec.id,
               "tests": [t.id for t in spec.tests], "seed": spec.config.seed,
               "config": spec.config.to_json(), "space": space.to_json(), "scales": scales.to_json(),
               "records": [{"id": r.id, "decimation": r.q, "samples": r.n, "eps_m": r.eps,
@@ -252,7 +255,7 @@ def write_summary(out_dir, camp, by: str, config: FitConfig, fits: list[dict], c
     from .law import LAW_FILE, fit_law
     log = log or (lambda m: None)
     out_dir = Path(out_dir)
-    summary = {"package_version": __version__, "campaign": camp.name,
+    summary = {"package_version": __version__, "environment": environment(), "campaign": camp.name,
                "campaign_path": str(campaign_path), "by": by,
                "units": {"applied": camp.units.get("applied", "N"),
                          "note": "every value in this file is SI (N, m, s, Pa); `applied` names "

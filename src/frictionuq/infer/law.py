@@ -42,6 +42,7 @@ from pathlib import Path
 import numpy as np
 from scipy.special import logsumexp
 
+from ..environment import environment
 from .. import atomic, params as P
 from ..errors import InputError, check_seed
 
@@ -249,7 +250,7 @@ def fit_law(fit_dir, family: str = "auto", seed: int = 1, compare: bool = True, 
                    "level_mean": m.tolist(), "level_sd": s.tolist(),
                    "beta_draws": ch[idx, :-1].tolist(), "tau_draws": np.exp(ch[idx, -1]).tolist(),
                    "tau_median": float(np.median(np.exp(ch[:, -1])))}
-    doc = {"format": "frictionuq-law/1", "package_version": __version__,
+    doc = {"format": "frictionuq-law/1", "package_version": __version__, "environment": environment(),
            "campaign": summary.get("campaign"), "fit_dir": str(fit_dir), "seed": seed,
            "model": model, "effects": list(effects), "family": chosen,
            "family_requested": family, "force_dependent": dep,

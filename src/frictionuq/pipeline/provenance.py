@@ -7,6 +7,7 @@ import json
 import time
 from pathlib import Path
 
+from ..environment import environment
 from .. import atomic
 from . import cache
 
@@ -42,7 +43,7 @@ def provenance(wf, statuses: dict | None = None, started: str | None = None) -> 
     c = load_campaign(camp, read_records=False)
     for te in c.tests:
         inputs.append({"path": str(camp / te.file), "sha256": ingest["records"][te.id]})
-    return {"package_version": __version__,
+    return {"package_version": __version__, "environment": environment(),
             "workflow": {"name": wf.name, "file": str(wf.path), "sha256": wf.sha256,
                          "config": wf.config},
             "seed": wf.seed, "started": started or prev.get("started"),

@@ -86,6 +86,8 @@ def render_discrepancy_page(folder, out_html=None) -> Path:
                    f"{d.get('campaign')} ({d.get('campaign_path')}), seed {d.get('seed')}, in "
                    f"{d.get('seconds', float('nan')):.0f} s."),
             B.pre(json.dumps(d.get("config", {}), indent=2))]
+    if isinstance(d.get("environment"), dict):      # software and machine (frictionuq.environment)
+        prov.append(B.pre(json.dumps(d["environment"], indent=2)))
     sections = [{"id": "discrepancy", "title": "Discrepancy: the missing effect",
                  "blocks": discrepancy.build(ctx, folder)},
                 {"id": "provenance", "title": "Provenance", "blocks": prov}]

@@ -38,6 +38,15 @@ def build(ctx, generated: str) -> list[dict]:
             ("run finished", prov.get("finished", "not recorded")),
             ("run folder", str(ctx.run_dir)),
             ("report generated", generated)]
+    env = section_of(prov, "environment")
+    if env:     # the software and machine of the run (frictionuq.environment)
+        pk = env.get("packages") or {}
+        info += [("Python", env.get("python", "not recorded")),
+                 ("packages", ", ".join(f"{k} {v}" for k, v in pk.items() if v) or "not recorded"),
+                 ("machine", f"{env.get('cpu') or '?'} ({env.get('cores') or '?'} cores), numba "
+                             f"compiles for {env.get('numba_cpu') or '?'}, {env.get('platform') or '?'}")]
+    else:
+        info.append(("software and machine", "not recorded (run made before frictionuq recorded them)"))
     out = [B.html(kv_table(info, caption="run"))]
     inputs = [i for i in prov.get("inputs") or [] if isinstance(i, dict)]
     if inputs:

@@ -1,0 +1,80 @@
+"""The software and machine that made an output: recorded beside the package version in every
+result file (fit.json, summary.json, discrepancy.json, law.json, comparison, validation,
+predictions, mechanical advantage, simulate's metadata, a pipeline run's run.json).
+
+Why: the same seed and inputs give the same numbers on one machine (checked: two `discover` runs
+on the real 25 and 70 lb records of dataset 1, 2026-11-29, identical to the last digit), but not
+always across machines or dependency versions: numba compiles the kernel for the host CPU
+(`numba_cpu`, LLVM's name for it: AVX-512 or not changes the rounding of sums), and the
+dependencies are not pinned. On real records, where two candidate effects explain a similar part
+of the gap, that rounding can move a multi-start optimiser to another optimum and change a
+second-round name (docs/log-discrepancy.md, 2026-11-29). With this block two outputs that differ
+say whether they came from the same software on the same kind of CPU.
+"""
+from __future__ import annotations
+
+import os
+import platform
+from functools import lru_cache
+from importlib import metadata
+
+#: the distributions whose versions can change a result (numerics, sampler, posterior summaries)
+PACKAGES = ("numpy", "scipy", "numba", "llvmlite", "emcee", "arviz", "arviz-stats", "pandas",
+            "xarray")
+
+
+def _version(dist: str) -> str | None:
+    try:
+        return metadata.version(dist)
+    except metadata.PackageNotFoundError:
+        return None
+
+
+def _cpu_model() -> str:
+    """The CPU's model name (Linux /proc/cpuinfo), else platform.processor(), else ""."""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as fh:
+            for line in fh:
+                if line.lower().startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or ""
+
+
+def _numba_cpu() -> str | None:
+    """LLVM's name of the CPU numba compiles for (numba's NUMBA_CPU_NAME if set, else the host)."""
+    name = os.environ.get("NUMBA_CPU_NAME")
+    if name:
+        return name
+    try:
+        import llvmlite.binding as ll
+        return str(ll.get_host_cpu_name())
+    except Exception:       # noqa: BLE001 - provenance must never stop a run
+        return None
+
+
+@lru_cache(maxsize=1)
+def _static() -> dict:
+    return {"python": platform.python_version(),
+            "platform": platform.platform(),
+            "cpu": _cpu_model(),
+            "numba_cpu": _numba_cpu(),
+            "cores": os.cpu_count(),
+            "packages": {p: _version(p) for p in PACKAGES}}
+
+
+def environment() -> dict:
+    """{"python", "platform", "cpu", "numba_cpu", "cores", "numba_threads", "packages": {name:
+    version or None}} of this process (JSON-ready; a fresh dict each call)."""
+    env = dict(_static(), packages=dict(_static()["packages"]))
+    env["numba_threads"] = _numba_threads()
+    return env
+
+
+def _numba_threads() -> int | None:
+    try:
+        import numba
+        return int(numba.get_num_threads())
+    except Exception:       # noqa: BLE001
+        return None

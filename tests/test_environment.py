@@ -1,0 +1,62 @@
+"""frictionuq.environment: the software and machine recorded beside the package version in every
+result file, so that two outputs that differ say whether they came from the same dependency
+versions on the same kind of CPU (numba compiles the kernel for the host CPU)."""
+import json
+from importlib import metadata
+
+import numpy as np
+import pytest
+
+from frictionuq import environment as E
+from frictionuq.cli import main
+from frictionuq.published import brfd_params
+
+
+def test_environment_names_the_versions_and_the_cpu_numba_compiles_for(monkeypatch):
+    env = E.environment()
+    json.dumps(env)                                  # JSON-ready
+    assert env["packages"]["numpy"] == metadata.version("numpy") == np.__version__
+    assert env["packages"]["numba"] == metadata.version("numba")
+    assert set(env["packages"]) == set(E.PACKAGES)
+    import llvmlite.binding as ll
+    monkeypatch.delenv("NUMBA_CPU_NAME", raising=False)
+    assert E._numba_cpu() == ll.get_host_cpu_name()
+    monkeypatch.setenv("NUMBA_CPU_NAME", "generic")
+    assert E._numba_cpu() == "generic"
+    import numba
+    assert env["numba_threads"] == numba.get_num_threads() and env["cores"] >= 1
+
+
+def test_environment_returns_a_fresh_dict():
+    a = E.environment()
+    a["packages"]["numpy"] = "edited"
+    a["python"] = "edited"
+    b = E.environment()
+    assert b["packages"]["numpy"] == np.__version__ and b["python"] != "edited"
+
+
+def test_a_result_file_records_it(tmp_path):
+    """`frictionuq simulate`'s metadata file, the cheapest result a command writes."""
+    t = np.arange(500) / 100.0
+    X = tmp_path / "X.csv"
+    X.write_text("time,displacement\n" + "\n".join(
+        f"{float(u)!r},{float(0.01 * np.sin(2 * np.pi * 0.5 * u))!r}" for u in t))
+    P = tmp_path / "P.json"
+    P.write_text(json.dumps(brfd_params(133.0)))
+    F = tmp_path / "F.csv"
+    assert main(["simulate", "--params", str(P), "--input", str(X), "--out", str(F)]) == 0
+    meta = json.loads(F.with_name("F.csv.json").read_text())
+    assert meta["environment"] == E.environment()
+
+
+@pytest.mark.parametrize("module", ["frictionuq.infer.fit", "frictionuq.discrepancy.discover",
+                                    "frictionuq.validate", "frictionuq.infer.compare",
+                                    "frictionuq.infer.law", "frictionuq.predict",
+                                    "frictionuq.advantage", "frictionuq.pipeline.provenance"])
+def test_every_writer_of_a_result_records_it(module):
+    """Each module that writes a result file with a package_version writes the environment
+    beside it (read from the source: running each writer is the job of its own test file)."""
+    import importlib
+    import inspect
+    src = inspect.getsource(importlib.import_module(module))
+    assert src.count('"package_version": __version__') == src.count('"environment": environment()')
