@@ -60,3 +60,18 @@ def test_every_writer_of_a_result_records_it(module):
     import inspect
     src = inspect.getsource(importlib.import_module(module))
     assert src.count('"package_version": __version__') == src.count('"environment": environment()')
+
+
+def test_the_reports_provenance_shows_it():
+    """The pipeline report's provenance table: the run's environment, or says it was not
+    recorded (run folders made before it was)."""
+    from types import SimpleNamespace
+    from frictionuq.report.sections import provenance as S
+    env = E.environment()
+
+    def html(prov):
+        ctx = SimpleNamespace(provenance=prov, workflow={}, summary=lambda: {}, run_dir="RUN")
+        return "".join(str(b) for b in S.build(ctx, "now"))
+    shown = html({"package_version": "0.1.0", "environment": env})
+    assert f"numpy {np.__version__}" in shown and f"compiles for {env['numba_cpu']}" in shown
+    assert "not recorded (run made before" in html({"package_version": "0.1.0"})
