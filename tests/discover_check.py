@@ -40,6 +40,14 @@ def check_discover(tmp_path, device, effect, seed, refit, also=None, max_effects
     doc = json.loads((tmp_path / "out" / "discrepancy.json").read_text())
     assert doc["named_effect"] == (d["named_effects"] or ["none"])[0] and doc["package_version"]
     assert doc["seed"] == 1 and doc["max_effects"] == max_effects
+    assert doc["environment"]["packages"]["numba"] and doc["environment"]["numba_cpu"]
+    # the other candidates passing the rule, listed beside each round's name (screen.alternatives)
+    for r in [doc] + doc["rounds"]:
+        named_r = r["named_effect"]
+        assert all(a["effect"] != named_r for a in r["alternatives"])
+        assert named_r != "none" or r["alternatives"] == []
+        scored = {c["effect"] for c in r["candidates"] if not c["screened_out"]}
+        assert {a["effect"] for a in r["alternatives"]} <= scored
     # each candidate row carries the RMSE of its round's baseline (rule (f) compares with it)
     assert all(c["rmse_before"] == doc["rmse_before"] for c in doc["candidates"])
     # a round after the last hidden effect (if max_effects allows one) said none

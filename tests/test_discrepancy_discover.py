@@ -53,6 +53,7 @@ def test_cli_discover_on_a_clean_mfd_campaign(tmp_path, capsys):
     assert "named effect: none" in out and "report.html" in out
     doc = json.loads((tmp_path / "out" / "discrepancy.json").read_text())
     assert doc["named_effect"] == "none" and doc["config"]["samples_per_cycle"]
+    assert doc["alternatives"] == [] and doc["environment"]["numba_cpu"]
     html = (tmp_path / "out" / "report.html").read_text()
     assert "Named effect: none" in html and "frictionuq" in html and "seed 1" in html
 

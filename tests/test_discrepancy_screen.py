@@ -78,6 +78,46 @@ def test_decision_rule():
     assert screen.decide([{**at, "effect": "chatter"}])[0] == "chatter"
 
 
+def test_the_other_candidates_passing_the_rule_are_listed_with_the_name():
+    """screen.alternatives and the naming reason: the real 70 lb records of dataset 1, round 2
+    against 3-stage + chatter (docs/log-discrepancy.md, 2026-11-29), whose name turned on the
+    kernel's rounding: with the host CPU's code the overshoot 37 nats ahead (decisive by the
+    20-nat margin), with generic x86-64 code the fade 12 nats ahead (not decisive)."""
+    def level(base, table):     # (effect, held-out gain per unit, parameters, MAP gain, MAP RMSE)
+        return [_row(e, g, k, map_gain=m, rmse=(r, base)) for e, g, k, m, r in table]
+    host = level(1114.0, [("takeup_overshoot", [96.8, 105.7], 3, 118.6, 1097.8),
+                          ("thermal_fade", [77.5, 87.9], 2, 102.0, 1097.1),
+                          ("eccentricity", [80.8, 81.0], 3, 89.3, 1079.5),
+                          ("reversal_hump", [30.0, 3.0], 2, 40.0, 1100.0)])     # fails (a)
+    name, why = screen.decide(host)
+    alts = screen.alternatives(host, name)
+    assert name == "takeup_overshoot"
+    assert [a["effect"] for a in alts] == ["thermal_fade", "eccentricity"]
+    assert alts[0]["behind"] == pytest.approx(202.5 - 165.4) and alts[1]["elpd_gain"] == pytest.approx(161.8)
+    assert "also passing the rule: thermal_fade (+165.4, 37.1 nats behind)" in why
+    assert "not decisive" not in why
+    generic = level(1121.6, [("thermal_fade", [75.4, 83.8], 2, 99.8, 1102.9),
+                             ("takeup_overshoot", [74.8, 72.2], 3, 104.7, 1068.7),
+                             ("eccentricity", [49.0, 37.7], 3, 57.0, 1083.0),
+                             ("reversal_hump", [32.5, 48.2], 2, 46.9, 1143.5)])  # fails (f)
+    name, why = screen.decide(generic)
+    assert name == "thermal_fade" and "not decisive: takeup_overshoot within 20 nats" in why
+    assert [a["effect"] for a in screen.alternatives(generic, name)] == ["takeup_overshoot",
+                                                                         "eccentricity"]
+    # a clear single winner, and "none", list nothing
+    assert screen.alternatives(generic[:1], "thermal_fade") == []
+    assert screen.alternatives(generic, "none") == []
+    name, why = screen.decide(generic[:1])
+    assert "also passing" not in why
+    # rule (d) prefers a simpler effect within 2 SE: the stronger one is listed, ahead (behind < 0)
+    five = [_row("eccentricity", [110.0, 210.0, 300.0, 250.0, 190.0], 3),
+            _row("reversal_hump", [100.0, 220.0, 280.0, 240.0, 200.0], 2)]
+    name, why = screen.decide(five)
+    alts = screen.alternatives(five, name)
+    assert name == "reversal_hump" and alts[0]["effect"] == "eccentricity" and alts[0]["behind"] < 0
+    assert "not decisive: eccentricity" in why
+
+
 def test_stage_one_candidates_are_listed_but_never_named():
     """A candidate whose MAP on all units is not > 20 nats above the baseline's is not scored held
     out (screen.py, stage 1): rank lists it after the scored ones with elpd_gain None, and
