@@ -31,8 +31,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .environment import environment
 from . import atomic, published
+from .environment import environment
 from .errors import InputError
 from .fitdir import campaign_applied_unit, campaign_of, load_posterior, load_summary
 

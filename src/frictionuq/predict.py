@@ -38,8 +38,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .environment import environment
 from . import atomic, params as P
+from .environment import environment
 from .errors import InputError, check_draws, check_seed
 from .draws import Draws, choose_draws
 from .fitdir import campaign_applied_unit, load_summary

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .environment import environment
 from . import atomic
+from .environment import environment
 from .errors import InputError
 from .model import simulate
 from .records import check_time, read_csv

@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .environment import environment
 from . import atomic
+from .environment import environment
 from .errors import InputError, check_draws, check_seed
 
 

@@ -40,8 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..environment import environment
 from .. import atomic
+from ..environment import environment
 from ..errors import InputError, check_seed
 from ..infer.fit import FitConfig, FitSpec, jsonable, plan, run_fit
 from ..infer.likelihood import NOISE_EFFECT_MIN_KEPT_HZ

@@ -80,11 +80,12 @@ Otherwise the answer is "none". The other candidates that pass the whole rule ar
 the name (`alternatives`: their gains and how far behind), and a name with one of them within
 MIN_GAIN nats is marked not decisive: on real records two effects can explain much the same part
 of the gap, and which of them the searches put ahead can turn on the kernel's rounding
-(alternatives() says where this was seen). Calibration on clean campaigns (benchmarks/bench_discover.py
---effects none, short records): with the plug-in score, screened on the kept samples, the best
-candidate's gains reached 67.7 nats on one held-out test but never two tests above 5 nats;
-screened at the raw rate, BRFD seed 5 was a false alarm (above). Figures with the evidence
-ratio: README, issue 5, and docs/log-discrepancy.md.
+(alternatives() says where this was seen).
+Calibration on clean campaigns (benchmarks/bench_discover.py --effects none, short records):
+with the plug-in score, screened on the kept samples, the best candidate's gains reached 67.7
+nats on one held-out test but never two tests above 5 nats; screened at the raw rate, BRFD seed
+5 was a false alarm (above). Figures with the evidence ratio: README, issue 5, and
+docs/log-discrepancy.md.
 """
 from __future__ import annotations
 

@@ -30,8 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..environment import environment
 from .. import atomic, params as P
+from ..environment import environment
 from ..errors import InputError, check_seed
 
 from .fit import FitConfig, FitSpec, jsonable, plan, prepare

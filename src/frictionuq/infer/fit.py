@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..environment import environment
 from .. import atomic, params as P
+from ..environment import environment
 from ..errors import InputError, check_seed
 from ..units import from_si
 from . import drivefilter

@@ -42,8 +42,8 @@ from pathlib import Path
 import numpy as np
 from scipy.special import logsumexp
 
-from ..environment import environment
 from .. import atomic, params as P
+from ..environment import environment
 from ..errors import InputError, check_seed
 
 FORCE_DEPENDENT = ("fc_fwd", "fc_bwd", "fs_fwd", "fs_bwd", "sigma0")

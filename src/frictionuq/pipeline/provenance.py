@@ -7,8 +7,8 @@ import json
 import time
 from pathlib import Path
 
-from ..environment import environment
 from .. import atomic
+from ..environment import environment
 from . import cache
 
 RUN_FILE = "run.json"
