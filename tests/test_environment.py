@@ -23,6 +23,8 @@ def test_environment_names_the_versions_and_the_cpu_numba_compiles_for(monkeypat
     assert E._numba_cpu() == ll.get_host_cpu_name()
     monkeypatch.setenv("NUMBA_CPU_NAME", "generic")
     assert E._numba_cpu() == "generic"
+    monkeypatch.setenv("NUMBA_CPU_NAME", "host")            # numba's word for the host's own
+    assert E._numba_cpu() == ll.get_host_cpu_name()
     import numba
     assert env["numba_threads"] == numba.get_num_threads() and env["cores"] >= 1
 

@@ -43,9 +43,10 @@ def _cpu_model() -> str:
 
 
 def _numba_cpu() -> str | None:
-    """LLVM's name of the CPU numba compiles for (numba's NUMBA_CPU_NAME if set, else the host)."""
+    """LLVM's name of the CPU numba compiles for (numba's NUMBA_CPU_NAME if set to a CPU, else
+    the host's)."""
     name = os.environ.get("NUMBA_CPU_NAME")
-    if name:
+    if name and name != "host":
         return name
     try:
         import llvmlite.binding as ll
