@@ -11,7 +11,10 @@ each applied-force level of a campaign:
    (each side refitted from the other's MAP first: recheck.cross_refit) is
    not scored held out (rule (e) below refuses it whatever its held-out score; skipping its
    fold fits and evidences is most of the screening's saving on a campaign where one effect or
-   none is present); it is listed with its in-sample gain;
+   none is present); it is listed with its in-sample gain; the candidates that pass the stage
+   (the contenders) are each refitted from every other contender's MAP, their own effect's
+   parameters kept (recheck.peer_refit), so that which contender is ahead does not rest on one
+   search having found a basin the others missed;
 3. leave-one-test-out: the MAP on the other tests (warm-started from step 1), and the held-out
    test's log predictive density given them, log p(y_k | y_-k) = log Z(all) - log Z(the others),
    each marginal likelihood by Laplace's method at its maximum, with the level's prior on both
@@ -19,7 +22,7 @@ each applied-force level of a campaign:
    log-posterior). A level with a single test is split into 3 contiguous blocks of whole
    cycles, held out in turn.
 
-The candidates' MAP searches (step 1), the cross refits and each scored model's fold fits
+The candidates' MAP searches (step 1), the cross and peer refits and each scored model's fold fits
 (step 3) do not depend on each other: with a workers.Workers of two processes they run side by
 side (discover's jobs; the CLI uses every core), with the serial run's results.
 
@@ -104,7 +107,7 @@ from ..infer.optimize import find_map
 from .candidate import fit_candidate
 from . import fits as F
 from .predictive import log_evidence
-from .recheck import cross_refit, nested_recheck, set_evidence
+from .recheck import cross_refit, nested_recheck, peer_refit, set_evidence
 from .workers import Workers
 
 MIN_GAIN = 20.0
@@ -209,6 +212,8 @@ def screen_level(level_tests, cfg: FitConfig, seed: int, effects=None, log=None,
     for name, (th_c, lp_c, secs) in zip(effects, res):
         fitted[name] = [lps[name][0], th_c, lp_c, secs]
     changed, moved = cross_refit(fitted, log, pool.map)
+    for name, m in peer_refit(fitted, MIN_GAIN, log, pool.map).items():
+        moved[name] += m
     lp_base = fitted["baseline"][2]
     scored = []
     for key, (lp_all, th_all, lpmap, secs) in fitted.items():
