@@ -44,17 +44,9 @@ def cross_refit(fitted: dict, log, pmap=map) -> tuple[list[dict], dict[str, list
     being named (rule (c)). With the baseline's refit alone before stage 1, reversal_hump on a
     hidden takeup_overshoot campaign (BRFD, seed 13) fell below the stage against the raised
     baseline and rose to +151.7 nats only in the refit after it, unscored."""
-    lp_all, th_b, lp_b, secs = fitted["baseline"]
     names = [n for n in fitted if n != "baseline"]
-    res = pmap(_refit, [(lp_all, F.theta_in(lp_all.space, fitted[n][0].space, fitted[n][1]))
-                        for n in names])
-    changed = []
-    for name, (th, lp_new) in zip(names, list(res)):
-        if lp_new > lp_b + 1e-6:
-            changed.append({"unit": "all tests", "start_from": name, "log_prob_gain": lp_new - lp_b})
-            log(f"screen baseline: MAP refitted from {name}'s, log-posterior {lp_b:.1f} -> {lp_new:.1f}")
-            th_b, lp_b = th, lp_new
-    fitted["baseline"] = [lp_all, th_b, lp_b, secs]
+    changed = baseline_from(fitted, names, log, pmap)
+    lp_all, th_b = fitted["baseline"][:2]
     res = pmap(_refit, [(fitted[n][0], F.theta_in(fitted[n][0].space, lp_all.space, th_b))
                         for n in names])
     moved = {}
@@ -70,7 +62,24 @@ def cross_refit(fitted: dict, log, pmap=map) -> tuple[list[dict], dict[str, list
     return changed, moved
 
 
-def theta_from_peer(space, theta, peer_space, peer_theta) -> "np.ndarray":
+def baseline_from(fitted: dict, names, log, pmap=map) -> list[dict]:
+    """The baseline refitted from each of these candidates' MAPs without the effect's parameters
+    (in place on `fitted`; it takes the first best, in the order of `names`). Returns the starts
+    that raised it."""
+    lp_all, th_b, lp_b, secs = fitted["baseline"]
+    res = pmap(_refit, [(lp_all, F.theta_in(lp_all.space, fitted[n][0].space, fitted[n][1]))
+                        for n in names])
+    changed = []
+    for name, (th, lp_new) in zip(names, list(res)):
+        if lp_new > lp_b + 1e-6:
+            changed.append({"unit": "all tests", "start_from": name, "log_prob_gain": lp_new - lp_b})
+            log(f"screen baseline: MAP refitted from {name}'s, log-posterior {lp_b:.1f} -> {lp_new:.1f}")
+            th_b, lp_b = th, lp_new
+    fitted["baseline"] = [lp_all, th_b, lp_b, secs]
+    return changed
+
+
+def theta_from_peer(space, theta, peer_space, peer_theta):
     """A candidate's point with every parameter it shares with a peer (the baseline's and any
     effects both have) taken from the peer's MAP, its own effect's parameters kept."""
     mine = dict(zip(space.names, space.to_values(theta)))
@@ -91,7 +100,9 @@ def peer_refit(fitted: dict, min_gain: float, log, pmap=map) -> dict[str, list[d
     kernel for a generic x86-64 CPU instead of the host's changed only the rounding, yet the
     takeup_overshoot search ended 16.5 nats lower and eccentricity's 35 nats lower, thermal_fade
     within 5: the fade was named instead of the overshoot. A contender refitted from another's
-    basin reaches it whenever that basin is also better for it."""
+    basin reaches it whenever that basin is also better for it. (screen_level then refits the
+    baseline from the raised contenders' MAPs too, baseline_from, so that it is compared with
+    its own best optimum, as after cross_refit.)"""
     base_lp = fitted["baseline"][2]
     names = [n for n in fitted if n != "baseline" and fitted[n][2] - base_lp > min_gain]
     pairs = [(a, b) for a in names for b in names if a != b]

@@ -14,7 +14,7 @@ each applied-force level of a campaign:
    none is present); it is listed with its in-sample gain; the candidates that pass the stage
    (the contenders) are each refitted from every other contender's MAP, their own effect's
    parameters kept (recheck.peer_refit), so that which contender is ahead does not rest on one
-   search having found a basin the others missed;
+   search having found a basin the others missed, and the baseline again from those that rose;
 3. leave-one-test-out: the MAP on the other tests (warm-started from step 1), and the held-out
    test's log predictive density given them, log p(y_k | y_-k) = log Z(all) - log Z(the others),
    each marginal likelihood by Laplace's method at its maximum, with the level's prior on both
@@ -107,7 +107,7 @@ from ..infer.optimize import find_map
 from .candidate import fit_candidate
 from . import fits as F
 from .predictive import log_evidence
-from .recheck import cross_refit, nested_recheck, peer_refit, set_evidence
+from .recheck import baseline_from, cross_refit, nested_recheck, peer_refit, set_evidence
 from .workers import Workers
 
 MIN_GAIN = 20.0
@@ -212,8 +212,11 @@ def screen_level(level_tests, cfg: FitConfig, seed: int, effects=None, log=None,
     for name, (th_c, lp_c, secs) in zip(effects, res):
         fitted[name] = [lps[name][0], th_c, lp_c, secs]
     changed, moved = cross_refit(fitted, log, pool.map)
-    for name, m in peer_refit(fitted, MIN_GAIN, log, pool.map).items():
+    raised = peer_refit(fitted, MIN_GAIN, log, pool.map)
+    for name, m in raised.items():
         moved[name] += m
+    # the baseline from the raised contenders' new MAPs too: no side keeps a poorer optimum
+    changed += baseline_from(fitted, [n for n, m in raised.items() if m], log, pool.map)
     lp_base = fitted["baseline"][2]
     scored = []
     for key, (lp_all, th_all, lpmap, secs) in fitted.items():
