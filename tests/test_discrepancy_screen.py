@@ -566,3 +566,44 @@ def test_contenders_are_refitted_from_each_others_maps():
     lp_o, th_o = fitted["takeup_overshoot"][:2]
     assert F.log_prob(lp_o, th_o) == pytest.approx(fitted["takeup_overshoot"][2])
     assert fitted["thermal_fade"][2] >= before["thermal_fade"]
+
+
+def test_peer_refit_refits_the_contenders_near_the_best_from_every_contender():
+    """recheck.peer_refit's pairs, with the refits recorded instead of run: the targets are the
+    contenders (more than min_gain above the baseline) within `margin` of the best one, the
+    starts every other contender; a candidate under min_gain is neither. A start that does not
+    raise its target (here every one: the recorded map returns -inf) leaves `fitted` as it was."""
+    from pathlib import Path
+    from frictionuq.discrepancy import fits as F
+    from frictionuq.discrepancy.recheck import peer_refit
+    from frictionuq.infer.fit import FitConfig
+    camp = load_campaign(Path(__file__).resolve().parent.parent / "data" / "brfd-twin")
+    tests = [t for t in camp.tests if t.applied == camp.tests[0].applied][:1]
+    cfg = FitConfig(samples_per_cycle=20, simulate_at="kept")
+    rng = np.random.default_rng(5)
+    gains = {"baseline": 0.0, "eccentricity": 300.0, "thermal_fade": 250.0,
+             "reversal_hump": 150.0, "rate_strengthening": 10.0}
+    fitted = {}
+    for name, g in gains.items():
+        lp, _ = F.logpost_for(tests, () if name == "baseline" else (name,), cfg)
+        fitted[name] = [lp, lp.space.sample_prior(1, rng)[0], -1000.0 + g, 0.0]
+    before = {n: (f[1].copy(), f[2]) for n, f in fitted.items()}
+    calls = []
+
+    def record(fn, items):
+        items = list(items)
+        calls.extend(items)
+        return [(th, -np.inf) for _, th in items]
+
+    moved = peer_refit(fitted, 20.0, print, pmap=record, margin=100.0)
+    want = [("eccentricity", "thermal_fade"), ("eccentricity", "reversal_hump"),
+            ("thermal_fade", "eccentricity"), ("thermal_fade", "reversal_hump")]
+    assert len(calls) == len(want)
+    for (lp_t, th0), (a, b) in zip(calls, want):
+        assert lp_t is fitted[a][0]
+        va, vb = F.values(lp_t.space, before[a][0]), F.values(fitted[b][0].space, before[b][0])
+        got = F.values(lp_t.space, th0)
+        assert all(got[n] == pytest.approx(vb[n] if n in vb else va[n], rel=1e-9) for n in got)
+    assert moved == {"eccentricity": [], "thermal_fade": [], "reversal_hump": []}
+    assert all(np.array_equal(fitted[n][1], before[n][0]) and fitted[n][2] == before[n][1]
+               for n in fitted)
