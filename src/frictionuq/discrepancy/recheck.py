@@ -49,17 +49,22 @@ def cross_refit(fitted: dict, log, pmap=map) -> tuple[list[dict], dict[str, list
     lp_all, th_b = fitted["baseline"][:2]
     res = pmap(_refit, [(fitted[n][0], F.theta_in(fitted[n][0].space, lp_all.space, th_b))
                         for n in names])
-    moved = {}
+    moved = {name: [] for name in names}
     for name, (th, lp_new) in zip(names, list(res)):
-        lp_c, _, lp_cmap, secs_c = fitted[name]
-        moved[name] = []
-        if lp_new > lp_cmap + 1e-6:
-            moved[name].append({"unit": "all tests", "start_from": "the baseline's MAP",
-                                "log_prob_gain": lp_new - lp_cmap})
-            log(f"screen {name}: MAP refitted from the baseline's, log-posterior {lp_cmap:.1f} -> "
-                f"{lp_new:.1f}")
-            fitted[name] = [lp_c, th, lp_new, secs_c]
+        _raise(fitted, name, th, lp_new, "the baseline", moved[name], log)
     return changed, moved
+
+
+def _raise(fitted: dict, name: str, th, lp_new: float, source: str, moved: list, log) -> None:
+    """Candidate `name` takes th (in place on `fitted`) if it reaches a higher log-posterior on
+    all units than its MAP so far; the start (`source`'s MAP) is appended to `moved`."""
+    lp_c, _, lp_cmap, secs = fitted[name]
+    if lp_new > lp_cmap + 1e-6:
+        moved.append({"unit": "all tests", "start_from": f"{source}'s MAP",
+                      "log_prob_gain": lp_new - lp_cmap})
+        log(f"screen {name}: MAP refitted from {source}'s, log-posterior {lp_cmap:.1f} -> "
+            f"{lp_new:.1f}")
+        fitted[name] = [lp_c, th, lp_new, secs]
 
 
 def baseline_from(fitted: dict, names, log, pmap=map) -> list[dict]:
@@ -121,12 +126,7 @@ def peer_refit(fitted: dict, min_gain: float, log, pmap=map,
                         for a, b in pairs])
     moved = {n: [] for n in names}
     for (a, b), (th, lp_new) in zip(pairs, list(res)):
-        lp_c, _, lp_cmap, secs = fitted[a]
-        if lp_new > lp_cmap + 1e-6:
-            moved[a].append({"unit": "all tests", "start_from": f"{b}'s MAP",
-                             "log_prob_gain": lp_new - lp_cmap})
-            log(f"screen {a}: MAP refitted from {b}'s, log-posterior {lp_cmap:.1f} -> {lp_new:.1f}")
-            fitted[a] = [lp_c, th, lp_new, secs]
+        _raise(fitted, a, th, lp_new, b, moved[a], log)
     return moved
 
 
