@@ -1,7 +1,8 @@
 """Calibration benchmark (issue 3 item 13): full fits to the convergence criteria, side by side.
 
     .venv/bin/python benchmarks/bench_fit.py [--case twin|arts-d1|all] [--simulate-at raw|kept|both]
-        [--sampler ensemble|chains|both] [--tests ID ...] [--out DIR]
+        [--sampler ensemble|chains|both] [--jobs 1|2|both] [--max-steps N] [--tests ID ...]
+        [--out DIR]
 
 Cases:
   * `twin`     one applied force of the BRFD twin (data/brfd-twin, 267 N, all its tests: four
@@ -17,6 +18,10 @@ infer.likelihood), or both side by side with their time ratio.
 --sampler: the stored run as the default ensemble (DE + independence move, the burn-in's walkers),
 as 16 independent chains from a profiled start ball (`run_walkers=16, independence_weight=0.8,
 start_profile=True`: infer.sampler), or both side by side with their time ratio.
+--jobs: the campaign's fits one after the other, each simulating on every core (1, the default),
+two side by side in spawned processes with one numba thread each (2: `fit --jobs 2`), or both
+with their time ratio (the same posteriors either way).
+--max-steps: a cap on each fit's stored steps (a shorter, comparable measurement).
 --tests: only these tests of the case's campaign (e.g. one arts-d1 level).
 Targets: under 2 minutes for the twin force level, under 10 minutes for all of brfd-arts-d1, on
 the 2-core machine. Run it on a quiet machine; the figures are in the README
@@ -48,12 +53,14 @@ SAMPLERS = {"ensemble": {},
 
 
 def run(case: str, out: Path, simulate_at: str = "raw", sampler: str = "ensemble",
-        tests=None) -> dict:
+        tests=None, jobs: int = 1, max_steps: int | None = None) -> dict:
     path, sel, target = CASES[case]
+    caps = {"max_steps": max_steps} if max_steps else {}
     cfg = FitConfig(tests=tuple(tests) if tests else sel.get("tests"), simulate_at=simulate_at,
-                    sampler=SamplerConfig(progress=False, **SAMPLERS[sampler]))
+                    sampler=SamplerConfig(progress=False, **SAMPLERS[sampler], **caps))
     t0 = time.perf_counter()
-    s = fit_campaign(path, out / f"{case}-{simulate_at}-{sampler}", by="applied", config=cfg)
+    s = fit_campaign(path, out / f"{case}-{simulate_at}-{sampler}-j{jobs}", by="applied",
+                     config=cfg, jobs=jobs)
     wall = time.perf_counter() - t0
     rows = []
     for f in s["fits"]:
@@ -62,7 +69,7 @@ def run(case: str, out: Path, simulate_at: str = "raw", sampler: str = "ensemble
         rhat = max(p["r_hat"] for p in free.values())
         rows.append((f["id"], f["seconds"], f["model_evaluations"], ess, rhat, f["converged"],
                      f["sampler_steps"], f["tau_max"]))
-    return {"case": f"{case} ({simulate_at}, {sampler})", "wall": wall, "target": target,
+    return {"case": f"{case} ({simulate_at}, {sampler}, j{jobs})", "wall": wall, "target": target,
             "rows": rows}
 
 
@@ -72,6 +79,9 @@ def main(argv=None):
     ap.add_argument("--simulate-at", choices=["raw", "kept", "both"], default="raw")
     ap.add_argument("--sampler", choices=["ensemble", "chains", "both"], default="ensemble")
     ap.add_argument("--tests", nargs="+", default=None, help="only these tests of the campaign")
+    ap.add_argument("--jobs", choices=["1", "2", "both"], default="1",
+                    help="the campaign's fits one after the other (1), two side by side (2), or both")
+    ap.add_argument("--max-steps", type=int, default=None, help="cap on stored steps per fit")
     ap.add_argument("--out", default=None, help="keep the fit outputs here (default: temporary)")
     a = ap.parse_args(argv)
     print(f"frictionuq {frictionuq.__version__}, Python {platform.python_version()}, "
@@ -81,7 +91,9 @@ def main(argv=None):
         out = Path(a.out) if a.out else Path(tmp)
         ats = ["raw", "kept"] if a.simulate_at == "both" else [a.simulate_at]
         sms = ["ensemble", "chains"] if a.sampler == "both" else [a.sampler]
-        results = [run(c, out, at, sm, a.tests) for c in cases for at in ats for sm in sms]
+        jbs = [1, 2] if a.jobs == "both" else [int(a.jobs)]
+        results = [run(c, out, at, sm, a.tests, j, a.max_steps)
+                   for c in cases for at in ats for sm in sms for j in jbs]
     print(f"{'fit':<42}{'wall s':>8}{'evals':>10}{'evals/s':>9}{'steps':>8}{'tau':>7}"
           f"{'ESS min':>9}{'R-hat':>7}{'ESS/s':>7}  converged")
     for r in results:
@@ -92,12 +104,17 @@ def main(argv=None):
               f"{'met' if r['wall'] <= r['target'] else 'NOT met'}, ratio {r['wall'] / r['target']:.2f})")
     w = {r["case"]: r["wall"] for r in results}
     for c in cases:
-        for sm in sms if a.simulate_at == "both" else []:
-            print(f"{c} ({sm}): raw / kept wall time "
-                  f"{w[f'{c} (raw, {sm})'] / w[f'{c} (kept, {sm})']:.2f}")
-        for at in ats if a.sampler == "both" else []:
-            print(f"{c} ({at}): ensemble / chains wall time "
-                  f"{w[f'{c} ({at}, ensemble)'] / w[f'{c} ({at}, chains)']:.2f}")
+        for j in jbs:
+            for sm in sms if a.simulate_at == "both" else []:
+                print(f"{c} ({sm}, j{j}): raw / kept wall time "
+                      f"{w[f'{c} (raw, {sm}, j{j})'] / w[f'{c} (kept, {sm}, j{j})']:.2f}")
+            for at in ats if a.sampler == "both" else []:
+                print(f"{c} ({at}, j{j}): ensemble / chains wall time "
+                      f"{w[f'{c} ({at}, ensemble, j{j})'] / w[f'{c} ({at}, chains, j{j})']:.2f}")
+        for at in ats if a.jobs == "both" else []:
+            for sm in sms:
+                print(f"{c} ({at}, {sm}): one fit at a time / two side by side, wall time "
+                      f"{w[f'{c} ({at}, {sm}, j1)'] / w[f'{c} ({at}, {sm}, j2)']:.2f}")
 
 
 if __name__ == "__main__":

@@ -12,6 +12,7 @@ TWIN = str(Path(__file__).resolve().parents[1] / "data" / "brfd-twin")
 @pytest.mark.parametrize("extra,fragment", [
     (["--effect", "hump"], "unknown effect 'hump'"),
     (["--test", "no-such-test"], "no test matches"),
+    (["--jobs", "0"], "jobs must be an integer >= 1, got 0"),
     (["--effect", "applied_tracking", "--test", "h-267N-0.5Hz", "--model", "lugre", "--effect", "stage2_nonlinear"],
      "stage2_nonlinear"),
 ])

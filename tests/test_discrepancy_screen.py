@@ -404,7 +404,7 @@ def test_screening_on_two_processes_gives_the_serial_results(tmp_path):
     baseline). Compared: every MAP, log-posterior and held-out score. And jobs < 1 is refused
     before any work."""
     from frictionuq.discrepancy.discover import discover
-    from frictionuq.discrepancy.workers import Workers
+    from frictionuq.workers import Workers
     from frictionuq.errors import InputError
     from frictionuq.infer.fit import FitConfig
     hidden_campaign(tmp_path / "c", "mfd", "thermal_fade", seed=11, short=True)

@@ -129,3 +129,71 @@ def test_polish_returns_its_best_point_with_that_points_log_posterior():
     assert lp >= lp0
     assert np.all(th >= sp.lo) and np.all(th <= sp.hi)
     assert lp == pytest.approx(-1.0, abs=1e-8)       # the maximum on the box: (1, 0.3)
+
+
+def _two_level_campaign(root):
+    """A campaign folder with two short harmonics at 133 and 267 N (published BRFD sets, white
+    noise 1 % of fc), one per applied force."""
+    camp = root / "camp"
+    (camp / "tests").mkdir(parents=True)
+    t = np.arange(0, 10.0, 0.01)
+    x = 0.0254 * np.sin(2 * np.pi * 0.2 * t)
+    toml = ('name = "two-levels"\ndevice = "BRFD"\n[units]\ntime = "s"\ndisplacement = "m"\n'
+            'force = "N"\napplied = "N"\n')
+    for a in (133.0, 267.0):
+        p = published.brfd_params(a)
+        y = simulate(t, x, p) + 0.005 * (p["fc_fwd"] + p["fc_bwd"]) * \
+            np.random.default_rng(int(a)).standard_normal(t.size)
+        np.savetxt(camp / f"tests/h{a:g}.csv", np.column_stack([t, x, y]), delimiter=",",
+                   header="time,displacement,force", comments="", fmt="%.10g")
+        toml += (f'[[tests]]\nid = "h{a:g}"\nfile = "tests/h{a:g}.csv"\napplied = {a}\n'
+                 'kind = "harmonic"\nfrequency_hz = 0.2\n')
+    (camp / "campaign.toml").write_text(toml)
+    return camp
+
+
+@pytest.mark.slow
+def test_fits_in_two_processes_are_the_serial_fits(tmp_path):
+    """fit_campaign(jobs=2) runs the two fits side by side in spawned processes (one numba
+    thread each) and writes what the serial run writes: the same summary entries (but for the
+    seconds), the same fit.json records (but for the timing and the environment, which says how
+    many threads ran) and the same posterior draws, bit for bit. One fit per test (no force law
+    to fit), tiny sampler, the friction forces and sigma0 free, the rest fixed at the 267 N
+    values."""
+    import xarray as xr
+    from frictionuq.infer.fit import fit_campaign
+    from frictionuq.infer.sampler import SamplerConfig
+    camp = _two_level_campaign(tmp_path)
+    fixed = {k: v for k, v in published.brfd_params(267.0).items()
+             if k not in ("fc_fwd", "fc_bwd", "sigma0")}
+    cfg = FitConfig(priors=fixed, n_predictive=5, sampler=SamplerConfig(
+        nwalkers=16, chunk=100, min_steps=100, max_steps=200, burn_rounds=1, burn_max_rounds=1,
+        burn_steps=100, n_random_starts=1, n_prior_starts=1, n_global_starts=0, progress=False))
+    lines = []
+    s1 = fit_campaign(camp, tmp_path / "serial", by="test", config=cfg, log=lines.append)
+    s2 = fit_campaign(camp, tmp_path / "two", by="test", config=cfg, log=lines.append, jobs=2)
+    assert "fitting 2 groups in 2 processes (one numba thread each)" in lines
+
+    def strip(entry):
+        return {k: v for k, v in entry.items() if k != "seconds"}
+    assert [f["id"] for f in s1["fits"]] == ["h133", "h267"]
+    assert [strip(f) for f in s1["fits"]] == [strip(f) for f in s2["fits"]]
+    assert s1["config"] == s2["config"]
+    for fid in ("h133", "h267"):
+        r1, r2 = (json.loads((tmp_path / d / fid / "fit.json").read_text()) for d in ("serial", "two"))
+        for r in (r1, r2):
+            r.pop("environment")
+            r["summary"].pop("seconds")
+            r["sampler"].pop("seconds")
+        assert r1 == r2
+        p1, p2 = (xr.open_dataset(tmp_path / d / fid / "posterior.nc", group="posterior")
+                  for d in ("serial", "two"))
+        assert set(p1.data_vars) >= {"fc_fwd", "fc_bwd", "sigma0"}
+        xr.testing.assert_identical(p1.drop_attrs(), p2.drop_attrs())
+
+
+def test_fit_campaign_refuses_a_bad_jobs_count_before_any_work(tmp_path):
+    from frictionuq.infer.fit import fit_campaign
+    with pytest.raises(ValueError, match="jobs must be an integer >= 1, got 0"):
+        fit_campaign(tmp_path / "no-such-campaign", tmp_path / "out", jobs=0)
+    assert not (tmp_path / "out").exists()

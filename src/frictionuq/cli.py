@@ -37,7 +37,8 @@ def _cmd_fit(a):
                     seed=a.seed, sampler=samp, tests=tuple(a.test) if a.test else None,
                     kinds=tuple(a.kind) if a.kind else None, simulate_at=a.simulate_at,
                     drive_lowpass=a.drive_lowpass)
-    s = fit_campaign(a.campaign, a.out, by=a.by, config=cfg, log=lambda m: print(m, file=sys.stderr))
+    s = fit_campaign(a.campaign, a.out, by=a.by, config=cfg, log=lambda m: print(m, file=sys.stderr),
+                     jobs=a.jobs)
     bad = [f["id"] for f in s["fits"] if not f["converged"]]
     print(f"wrote {len(s['fits'])} fit(s) of campaign {s['campaign']!r} to {a.out} (summary.json, "
           f"<fit>/posterior.nc, <fit>/fit.json; SI units)")
@@ -256,6 +257,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="decimated records: simulate at the raw rate and filter the model force like "
                         "the data (default), or simulate on the decimated displacement (faster)")
     _add_drive_lowpass(s)
+    s.add_argument("--jobs", "-j", type=int, default=1, metavar="N",
+                   help="fits side by side in N processes, one numba thread each (default 1: one "
+                        "fit at a time on every core); the results do not depend on it")
     _add_selection(s, "cap on stored sampler steps")
     s.set_defaults(func=_cmd_fit)
 
@@ -326,7 +330,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--max-effects", type=int, default=1, metavar="N",
                    help="name up to N effects, one per round, each screened against the model "
                         "with the ones named before (default 1)")
-    from .discrepancy.workers import default_jobs
+    from .workers import default_jobs
     s.add_argument("--jobs", "-j", type=int, default=default_jobs(), metavar="N",
                    help="processes for the screening's fits (default: every core, here "
                         f"{default_jobs()}); the results do not depend on it")

@@ -46,7 +46,7 @@ from ..errors import InputError, check_seed
 from ..infer.fit import FitConfig, FitSpec, jsonable, plan, run_fit
 from ..infer.likelihood import NOISE_EFFECT_MIN_KEPT_HZ
 from . import fits, screen
-from .workers import Workers
+from ..workers import Workers
 
 
 def _noise_scale(entry: dict, gain_rms: dict | None = None) -> float | None:

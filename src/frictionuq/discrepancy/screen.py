@@ -108,7 +108,7 @@ from .candidate import fit_candidate
 from . import fits as F
 from .predictive import log_evidence
 from .recheck import baseline_from, cross_refit, nested_recheck, peer_refit, set_evidence
-from .workers import Workers
+from ..workers import Workers
 
 MIN_GAIN = 20.0
 MIN_UNIT_GAIN = 5.0

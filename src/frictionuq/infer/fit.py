@@ -236,13 +236,44 @@ def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True
 
 
 def fit_campaign(campaign_path, out_dir, by: str = "applied", config: FitConfig | None = None,
-                 resume: bool = True, log=None) -> dict:
-    """Fit every group of a campaign (serially) and write out_dir/summary.json."""
+                 resume: bool = True, log=None, jobs: int = 1) -> dict:
+    """Fit every group of a campaign and write out_dir/summary.json.
+
+    jobs: processes for the fits (workers.Workers; one numba thread each). With jobs=1 they run
+    here one after the other, the simulator on every core. With more, `jobs` fits run side by
+    side, each in a spawned process, with the same results (each fit's random numbers come from
+    its own seed); their progress messages then go to the processes' standard error, prefixed
+    with the fit's id as here, and the sampler's progress bar is off."""
     from ..campaign import load_campaign
+    from ..workers import Workers
+    jobs = Workers(jobs).jobs               # refused here, before any work, if not an int >= 1
     camp = load_campaign(campaign_path)
     specs = plan(camp, by, config)
-    fits = [run_fit(s, out_dir, camp.name, resume, log) for s in specs]
+    jobs = min(jobs, len(specs)) if specs else 1
+    if jobs == 1:
+        fits = [run_fit(s, out_dir, camp.name, resume, log) for s in specs]
+    else:
+        if log:
+            log(f"fitting {len(specs)} groups in {jobs} processes (one numba thread each)")
+        with Workers(jobs) as w:
+            fits = w.map(_run_fit_job, [(s, str(out_dir), camp.name, resume, log is not None)
+                                        for s in specs])
     return write_summary(out_dir, camp, by, config or FitConfig(), fits, campaign_path, log=log)
+
+
+def _stderr(msg: str) -> None:
+    import sys
+    print(msg, file=sys.stderr, flush=True)
+
+
+def _run_fit_job(job) -> dict:
+    """run_fit in a worker process (fit_campaign with jobs > 1), messages to standard error when
+    the caller logs, and no automatic progress bar: several would overwrite each other's line
+    (the config is untouched, so fit.json is the serial run's)."""
+    import os
+    spec, out_dir, name, resume, logs = job
+    os.environ["FRICTIONUQ_PROGRESS"] = "0"     # this worker process only
+    return run_fit(spec, out_dir, name, resume, _stderr if logs else None)
 
 
 def write_summary(out_dir, camp, by: str, config: FitConfig, fits: list[dict], campaign_path, *,

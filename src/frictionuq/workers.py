@@ -1,20 +1,25 @@
-"""The screening's independent fits on several cores: a map over spawned worker processes.
+"""Independent fits on several cores: a map over spawned worker processes.
 
-The discrepancy screening (screen.py) fits every candidate effect from the baseline's MAP, refits
-each side from the other's solutions and fits each scored model's leave-one-out folds. Those fits
-do not depend on each other. Run one after the other they already keep part of the second core
-busy (the simulator's numba threads start on the full-rate fits, not on the coarsened ones): two
-processes cut the screening of the item-6 campaign by 14 %, not by half (docs/log-discrepancy.md).
+Used by the calibration (infer.fit.fit_campaign with jobs > 1: one fit per applied force or per
+test, each in its own process) and by the discrepancy screening (discrepancy/screen.py: every
+candidate effect fitted from the baseline's MAP, each side refitted from the other's solutions,
+each scored model's leave-one-out folds). Those fits do not depend on each other. Run one after
+the other they already keep part of the second core busy (the simulator's numba threads run the
+walkers' or the Jacobian's simulations side by side), but the rest of each fit (the sampler's
+moves, the decimation, the noise model, scipy's optimisers) runs on one core: two processes cut
+the screening of the item-6 campaign by 14 % (docs/log-discrepancy.md) and the fits of a
+campaign's levels by more (docs/log-calibration.md, 2026-11-29, afternoon).
 `Workers(jobs).map(fn, items)` runs them in `jobs` processes (spawn, not fork: numba's threading
 layer and fork do not mix; one numba thread each) and returns the results in the order of
-`items`. Every fit is deterministic given its inputs (each candidate's random starts come from its
-own seeded generator), so the results are those of the serial map, bit for bit (tested). With
-jobs=1 (the library's default, and inside a pipeline task, which has its own processes) the map
-runs here, in order, with no process started.
+`items`. Every fit is deterministic given its inputs (each fit's random numbers come from its own
+seeded generator, and the simulations of a batch do not depend on how many threads run them), so
+the results are those of the serial map, bit for bit (tested). With jobs=1 (the library's
+default, and inside a pipeline task, which has its own processes) the map runs here, in order,
+with no process started.
 
 The functions mapped must be importable (module level) and their arguments picklable: the
-log-posteriors (records, prior box) travel whole; workers do not log, the caller logs from the
-results. The pipeline's own process pool (pipeline.runner) runs whole tasks, this one fits.
+log-posteriors (records, prior box) or fit specifications travel whole. The pipeline's own
+process pool (pipeline.runner) runs whole tasks, this one fits.
 """
 from __future__ import annotations
 
