@@ -14,6 +14,8 @@ Whole file, on 2 cores shared with two other jobs: 100 s wall (60 s CPU) with th
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import csv
 import json
 import math
@@ -258,8 +260,33 @@ def test_lugre_data_do_not_prefer_three_stage():
     assert res["models"]["lugre"]["rmse"] < 1.2 * NOISE_SD
 
 
+@pytest.mark.slow
+def test_a_levels_fits_in_two_processes_are_the_serial_ones():
+    """compare_level with a workers.Workers of two processes (`compare --jobs 2`) runs the fit
+    on all tests and the fit without each test side by side and returns the serial result,
+    the same numbers to the last bit (each fit has its own seed) but for the seconds. Two
+    tests, the LuGre model, a short sampler."""
+    from frictionuq.workers import Workers
+    tests = sine_tests("lugre", 2)[:2]
+    cfg = {"lugre": FitConfig(model="lugre", likelihood="ar1", priors=dict(FIXED), sampler=replace(
+        SAMPLER, nwalkers=16, chunk=100, min_steps=100, max_steps=100, burn_steps=100))}
+    lines = []
+    serial = compare_level(tests, cfg, seed=3)
+    with Workers(2) as w:
+        two = compare_level(tests, cfg, seed=3, log=lines.append, workers=w)
+    assert lines == ["3 fits in 2 processes (one numba thread each)"]
+    for r in (serial, two):
+        m = r["models"]["lugre"]
+        assert set(m["fits"]) == {"all", "without-h-0.4Hz", "without-h-0.5Hz"}
+        m.pop("seconds")
+        for f in m["fits"].values():
+            f.pop("seconds")
+    assert serial == two
+
+
 # ------------------------------------------------------------------ CLI
 @pytest.mark.parametrize("extra,fragment", [
+    (["--jobs", "0"], "jobs must be an integer >= 1, got 0"),
     (["--test", "no-such-test"], "unknown test id(s) no-such-test"),
     (["--model", "maxwell"], "unknown model 'maxwell'"),
     (["--model", "lugre", "--kind", "earthquake", "--test", "h-267N-0.5Hz"], "no test matches"),

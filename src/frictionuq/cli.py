@@ -113,7 +113,7 @@ def _cmd_compare(a):
     models = list(dict.fromkeys(a.model or ["three_stage", "lugre"]))
     cfgs = {m: FitConfig(model=m, likelihood=a.likelihood, seed=a.seed, sampler=samp) for m in models}
     r = compare_campaign(a.campaign, a.out, cfgs, kinds=a.kind, tests=a.test, seed=a.seed,
-                         offset=a.offset, log=lambda m: print(m, file=sys.stderr))
+                         offset=a.offset, log=lambda m: print(m, file=sys.stderr), jobs=a.jobs)
     print(format_table(r))
     print(f"wrote {a.out}/compare.json and compare.csv (RMSE in N, ELPD in nats of whole held-out tests)")
     if not all(m["converged"] for lv in r["levels"] for m in lv["models"].values()):
@@ -314,6 +314,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--likelihood", choices=["iid", "ar1"], default="ar1")
     s.add_argument("--offset", choices=["marginal", "shared"], default="marginal",
                    help="held-out test's load-cell offset: integrated out (default) or the training fit's")
+    s.add_argument("--jobs", "-j", type=int, default=1, metavar="N",
+                   help="a level's fits (each model on all tests and without each test) side by "
+                        "side in N processes, one numba thread each (default 1); the results do "
+                        "not depend on it")
     _add_selection(s, "cap on stored sampler steps per fit")
     s.set_defaults(func=_cmd_compare)
 

@@ -7,8 +7,9 @@ each scored model's leave-one-out folds). Those fits do not depend on each other
 the other they already keep part of the second core busy (the simulator's numba threads run the
 walkers' or the Jacobian's simulations side by side), but the rest of each fit (the sampler's
 moves, the decimation, the noise model, scipy's optimisers) runs on one core: two processes cut
-the screening of the item-6 campaign by 14 % (docs/log-discrepancy.md) and the fits of a
-campaign's levels by more (docs/log-calibration.md, 2026-11-29, afternoon).
+the screening of the item-6 campaign by 14 % (docs/log-discrepancy.md) and the six level fits of
+brfd-arts-d1 by 16 % (984 -> 825 s; each fit ran 1.4-1.8 times slower beside another: the two
+cores of these machines do not double the throughput; docs/log-calibration.md, 2026-11-29).
 `Workers(jobs).map(fn, items)` runs them in `jobs` processes (spawn, not fork: numba's threading
 layer and fork do not mix; one numba thread each) and returns the results in the order of
 `items`. Every fit is deterministic given its inputs (each fit's random numbers come from its own
@@ -29,6 +30,12 @@ import os
 def _init_worker():
     import numba
     numba.set_num_threads(1)
+
+
+def stderr_log(msg: str) -> None:
+    """The log of a worker process whose caller logs: a line on standard error."""
+    import sys
+    print(msg, file=sys.stderr, flush=True)
 
 
 def default_jobs() -> int:

@@ -78,6 +78,46 @@ def _fit_record(res) -> dict:
             "draws": int(res.chain.shape[0] * res.chain.shape[1]), "seconds": float(res.seconds)}
 
 
+def _quiet(msg: str) -> None:
+    pass
+
+
+def _compare_fit(job, log) -> dict:
+    """One fit of compare_level and what the comparison takes from it: with k None, the fit on
+    all tests and its RMSE; else the fit without test k and test k's held-out ELPD."""
+    name, cfg, tests, k, seed, offset, work_dir = job
+    t0 = time.perf_counter()
+    if k is None:
+        _, _, lp_full, res = _fit(tests, cfg, seed, f"{name}/all", work_dir, log)
+        rmse, per = _rmse(lp_full, res, cfg.n_predictive, np.random.default_rng([seed, 7]))
+        log(f"{name}: RMSE {rmse:.4g} N (all {len(tests)} tests)")
+        return {"rmse": rmse, "rmse_per_test": per, "fit": _fit_record(res),
+                "seconds": time.perf_counter() - t0}
+    held = tests[k]
+    _, space, _, res_k = _fit(tests[:k] + tests[k + 1:], cfg, seed, f"{name}/without-{held.id}",
+                              work_dir, log)
+    lp_held = LogPosterior(space, records_from_tests([held], **cfg.record_options()))
+    ll, ch = heldout_loglik(lp_held, _draws(res_k), offset)
+    elpd, neff, c_hat = log_mean_exp(ll[:, 0]), weights_n_eff(ll[:, 0]), None
+    if np.isfinite(ch).any():
+        box = space.priors["force_offset"]
+        c = float(np.nanmedian(ch[:, 0]))
+        c_hat = {"median_N": c, "inside_prior_box": bool(box.lower < c < box.upper)}
+    log(f"{name}: held-out {held.id}: elpd {elpd:.6g} nats (n_eff of weights {neff:.1f})")
+    return {"held": held.id, "elpd": elpd, "n_eff": neff, "c_hat": c_hat, "fit": _fit_record(res_k),
+            "seconds": time.perf_counter() - t0}
+
+
+def _compare_fit_job(job_logs) -> dict:
+    """_compare_fit in a worker process (compare_level with workers): messages to standard
+    error when the caller logs, no automatic progress bar."""
+    import os
+    from ..workers import stderr_log
+    job, logs = job_logs
+    os.environ["FRICTIONUQ_PROGRESS"] = "0"     # this worker process only
+    return _compare_fit(job, stderr_log if logs else _quiet)
+
+
 def check_configs(configs: dict) -> dict:
     """Validate {name: FitConfig}: known models, effects the model can carry, a known
     likelihood. Raises InputError (one line). Returns the configurations with one kept-rate
@@ -102,12 +142,15 @@ def check_configs(configs: dict) -> dict:
 
 
 def compare_level(tests, configs: dict[str, FitConfig], seed: int, log=None, *,
-                  offset: str = "marginal", work_dir=None) -> dict:
+                  offset: str = "marginal", work_dir=None, workers=None) -> dict:
     """Compare model configurations on the tests of one applied-force level (campaign Test
     objects with SI records). Returns {"tests", "applied", "cross_validated", "models": {name:
     {rmse, rmse_per_test, elpd, se, elpd_per_test, ...}}, "pairs": [...]}: see the module
-    docstring. work_dir (optional): where the sampler keeps its HDF5 chains."""
-    log = log or (lambda m: None)
+    docstring. work_dir (optional): where the sampler keeps its HDF5 chains. workers (optional):
+    a workers.Workers that runs the level's fits (every model's fit on all tests and its fits
+    without each test: independent, seeded) side by side, with the serial results; their
+    messages then come from the worker processes, on standard error."""
+    log = log or _quiet
     configs = check_configs(configs)
     if offset not in OFFSET_MODES:
         raise InputError(f"compare: offset must be one of {OFFSET_MODES}, got {offset!r}")
@@ -124,39 +167,34 @@ def compare_level(tests, configs: dict[str, FitConfig], seed: int, log=None, *,
     if not cv:
         out["note"] = ("a single test: leave-one-test-out cross-validation is impossible, no ELPD "
                        "reported")
+    jobs = []
     for name, cfg in configs.items():
-        t0 = time.perf_counter()
-        m: dict = {"model": cfg.model, "effects": list(cfg.effects), "likelihood": cfg.likelihood}
-        _, _, lp_full, res = _fit(tests, cfg, seed, f"{name}/all", work_dir, log)
-        m["rmse"], m["rmse_per_test"] = _rmse(lp_full, res, cfg.n_predictive,
-                                              np.random.default_rng([seed, 7]))
-        m["fits"] = {"all": _fit_record(res)}
-        log(f"{name}: RMSE {m['rmse']:.4g} N (all {K} tests)")
+        jobs.append((name, cfg, tests, None, seed, offset, work_dir))
+        jobs += [(name, cfg, tests, k, seed + 1 + k, offset, work_dir) for k in range(K)] if cv else []
+    if workers is None or workers.jobs == 1:
+        done = [_compare_fit(j, log) for j in jobs]
+    else:
+        log(f"{len(jobs)} fits in {workers.jobs} processes (one numba thread each)")
+        done = workers.map(_compare_fit_job, [(j, log is not _quiet) for j in jobs])
+    by_model: dict = {}
+    for j, r in zip(jobs, done):
+        by_model.setdefault(j[0], []).append(r)
+    for name, cfg in configs.items():
+        full, *folds = by_model[name]
+        m: dict = {"model": cfg.model, "effects": list(cfg.effects), "likelihood": cfg.likelihood,
+                   "rmse": full["rmse"], "rmse_per_test": full["rmse_per_test"],
+                   "fits": {"all": full["fit"]}}
         if cv:
-            elpd_k, neff, c_hat = {}, {}, {}
-            for k, held in enumerate(tests):
-                train = tests[:k] + tests[k + 1:]
-                _, space, _, res_k = _fit(train, cfg, seed + 1 + k, f"{name}/without-{held.id}",
-                                          work_dir, log)
-                rec = records_from_tests([held], **cfg.record_options())
-                lp_held = LogPosterior(space, rec)
-                ll, ch = heldout_loglik(lp_held, _draws(res_k), offset)
-                elpd_k[held.id] = log_mean_exp(ll[:, 0])
-                neff[held.id] = weights_n_eff(ll[:, 0])
-                if np.isfinite(ch).any():
-                    box = space.priors["force_offset"]
-                    c = float(np.nanmedian(ch[:, 0]))
-                    c_hat[held.id] = {"median_N": c, "inside_prior_box": bool(box.lower < c < box.upper)}
-                m["fits"][f"without-{held.id}"] = _fit_record(res_k)
-                log(f"{name}: held-out {held.id}: elpd {elpd_k[held.id]:.6g} nats "
-                    f"(n_eff of weights {neff[held.id]:.1f})")
+            m["fits"].update({f"without-{r['held']}": r["fit"] for r in folds})
+            elpd_k = {r["held"]: r["elpd"] for r in folds}
             tot = elpd_total(list(elpd_k.values()))
-            m.update(elpd=tot["elpd"], se=tot["se"], elpd_per_test=elpd_k, n_eff_weights=neff,
-                     heldout_offset=c_hat)
+            m.update(elpd=tot["elpd"], se=tot["se"], elpd_per_test=elpd_k,
+                     n_eff_weights={r["held"]: r["n_eff"] for r in folds},
+                     heldout_offset={r["held"]: r["c_hat"] for r in folds if r["c_hat"] is not None})
         else:
             m.update(elpd=None, se=None, elpd_per_test=None)
         m["converged"] = all(f["converged"] for f in m["fits"].values())
-        m["seconds"] = time.perf_counter() - t0
+        m["seconds"] = sum(r["seconds"] for r in [full] + folds)
         out["models"][name] = m
     return add_pairs(out)
 
@@ -224,13 +262,17 @@ def _csv(levels) -> str:
 
 def compare_campaign(campaign_path, out_dir, configs: dict[str, FitConfig] | None = None,
                      kinds=None, tests=None, log=None, *, seed: int | None = None,
-                     offset: str = "marginal", work_dir=None) -> dict:
+                     offset: str = "marginal", work_dir=None, jobs: int = 1) -> dict:
     """Compare models on every applied-force level of a campaign; writes out_dir/compare.json
     and out_dir/compare.csv (atomically). configs: {name: FitConfig}, default three_stage and
     lugre with the default fit settings; kinds / tests: only tests of these kinds / ids; seed:
-    default the first configuration's. Bad input is refused (InputError) before any sampling."""
+    default the first configuration's; jobs: processes for each level's fits (compare_level's
+    workers; 1: one after the other, the simulator on every core). Bad input is refused
+    (InputError) before any sampling."""
     from ..campaign import load_campaign
-    log = log or (lambda m: None)
+    from ..workers import Workers
+    log = log or _quiet
+    workers = Workers(jobs)     # refused here, before any work, if not an int >= 1
     configs = check_configs(dict(configs) if configs else default_configs())
     if offset not in OFFSET_MODES:
         raise InputError(f"compare: offset must be one of {OFFSET_MODES}, got {offset!r}")
@@ -247,13 +289,15 @@ def compare_campaign(campaign_path, out_dir, configs: dict[str, FitConfig] | Non
     for cfg in configs.values():     # validates every configuration against the selection
         specs = plan(camp, "applied", replace(cfg, kinds=kinds, tests=tests))
     levels = []
-    for spec in specs:
-        log(f"level {spec.id}: {len(spec.tests)} test(s): {', '.join(t.id for t in spec.tests)}")
-        wd = None if work_dir is None else Path(work_dir) / spec.id
-        lv = compare_level(spec.tests, configs, seed, log=lambda m, s=spec.id: log(f"{s}: {m}"),
-                           offset=offset, work_dir=wd)
-        lv["id"] = spec.id
-        levels.append(lv)
+    with workers:
+        for spec in specs:
+            log(f"level {spec.id}: {len(spec.tests)} test(s): {', '.join(t.id for t in spec.tests)}")
+            wd = None if work_dir is None else Path(work_dir) / spec.id
+            lv_log = None if log is _quiet else (lambda m, s=spec.id: log(f"{s}: {m}"))
+            lv = compare_level(spec.tests, configs, seed, log=lv_log, offset=offset, work_dir=wd,
+                               workers=workers)
+            lv["id"] = spec.id
+            levels.append(lv)
     return write_compare(out_dir, camp.name, campaign_path, configs, levels, seed=seed,
                          offset=offset, kinds=kinds, tests=tests)
 

@@ -261,19 +261,15 @@ def fit_campaign(campaign_path, out_dir, by: str = "applied", config: FitConfig 
     return write_summary(out_dir, camp, by, config or FitConfig(), fits, campaign_path, log=log)
 
 
-def _stderr(msg: str) -> None:
-    import sys
-    print(msg, file=sys.stderr, flush=True)
-
-
 def _run_fit_job(job) -> dict:
     """run_fit in a worker process (fit_campaign with jobs > 1), messages to standard error when
     the caller logs, and no automatic progress bar: several would overwrite each other's line
     (the config is untouched, so fit.json is the serial run's)."""
     import os
+    from ..workers import stderr_log
     spec, out_dir, name, resume, logs = job
     os.environ["FRICTIONUQ_PROGRESS"] = "0"     # this worker process only
-    return run_fit(spec, out_dir, name, resume, _stderr if logs else None)
+    return run_fit(spec, out_dir, name, resume, stderr_log if logs else None)
 
 
 def write_summary(out_dir, camp, by: str, config: FitConfig, fits: list[dict], campaign_path, *,
