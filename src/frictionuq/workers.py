@@ -28,8 +28,11 @@ import os
 
 
 def _init_worker():
+    """One numba thread, and no automatic sampler progress bar: several processes' bars would
+    overwrite each other's line (infer.sampler reads FRICTIONUQ_PROGRESS; this process only)."""
     import numba
     numba.set_num_threads(1)
+    os.environ["FRICTIONUQ_PROGRESS"] = "0"
 
 
 def stderr_log(msg: str) -> None:

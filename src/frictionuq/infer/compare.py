@@ -110,11 +110,9 @@ def _compare_fit(job, log) -> dict:
 
 def _compare_fit_job(job_logs) -> dict:
     """_compare_fit in a worker process (compare_level with workers): messages to standard
-    error when the caller logs, no automatic progress bar."""
-    import os
+    error when the caller logs."""
     from ..workers import stderr_log
     job, logs = job_logs
-    os.environ["FRICTIONUQ_PROGRESS"] = "0"     # this worker process only
     return _compare_fit(job, stderr_log if logs else _quiet)
 
 

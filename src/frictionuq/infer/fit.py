@@ -263,12 +263,10 @@ def fit_campaign(campaign_path, out_dir, by: str = "applied", config: FitConfig 
 
 def _run_fit_job(job) -> dict:
     """run_fit in a worker process (fit_campaign with jobs > 1), messages to standard error when
-    the caller logs, and no automatic progress bar: several would overwrite each other's line
-    (the config is untouched, so fit.json is the serial run's)."""
-    import os
+    the caller logs (the worker turns the progress bar off; the config is untouched, so fit.json
+    is the serial run's)."""
     from ..workers import stderr_log
     spec, out_dir, name, resume, logs = job
-    os.environ["FRICTIONUQ_PROGRESS"] = "0"     # this worker process only
     return run_fit(spec, out_dir, name, resume, stderr_log if logs else None)
 
 
