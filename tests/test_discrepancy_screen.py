@@ -495,57 +495,6 @@ def test_theta_from_peer_takes_the_shared_parameters_and_keeps_the_effects():
     assert {"a_to_fwd", "a_to_bwd", "l_to"} <= set(got) and not {"kappa", "e_fade"} & set(got)
 
 
-
-def test_previous_round_start_takes_the_candidates_earlier_map_and_the_new_effect_from_th0():
-    """candidate.previous_round_start: in round 2 (baseline 3-stage + chatter), a candidate's
-    start from its own round-1 MAP (3-stage + it) has every parameter that MAP holds, and the
-    newly named effect's (chatter's) from th0, the new baseline's MAP."""
-    from frictionuq.discrepancy import fits as F
-    from frictionuq.discrepancy.candidate import previous_round_start
-    from frictionuq.infer.fit import FitConfig
-    from pathlib import Path
-    camp = load_campaign(Path(__file__).resolve().parent.parent / "data" / "brfd-twin")
-    tests = [t for t in camp.tests if t.applied == camp.tests[0].applied][:1]
-    cfg = FitConfig(samples_per_cycle=20, simulate_at="kept")
-    lp_1, _ = F.logpost_for(tests, ("thermal_fade",), cfg)                 # round 1's candidate
-    lp_2, _ = F.logpost_for(tests, ("chatter", "thermal_fade"), cfg)       # round 2's
-    rng = np.random.default_rng(5)
-    prev = F.values(lp_1.space, lp_1.space.sample_prior(1, rng)[0])
-    th0 = lp_2.space.sample_prior(1, rng)[0]
-    got = F.values(lp_2.space, previous_round_start(lp_2.space, th0, prev))
-    v0 = F.values(lp_2.space, th0)
-    for n, v in got.items():
-        assert v == pytest.approx(prev[n] if n in prev else v0[n], rel=1e-9), n
-    assert {"a_ch", "s_ch", "w_ch"} <= set(got) - set(prev) and {"kappa", "e_fade"} <= set(prev)
-
-
-def test_a_later_round_starts_each_candidate_from_its_map_of_the_round_before(tmp_path,
-                                                                               monkeypatch):
-    """discover._screen_rounds hands screen_level, in round 2, every remaining candidate's MAP
-    of round 1 (previous_maps) and the named model's MAP as the baseline's start; round 1 gets
-    none. The screening is a stub that records its arguments."""
-    from types import SimpleNamespace
-    from frictionuq.discrepancy import discover as D
-    seen = []
-
-    def stub(tests, cfg, seed, effects=None, log=None, base_effects=(), base_start=None,
-             workers=None, previous_maps=None):
-        seen.append((tuple(base_effects), base_start, previous_maps))
-        models = {"baseline": {"map": {"fc_fwd": 1.0}}}
-        models.update({e: {"map": {"fc_fwd": 2.0, "tag": e}} for e in effects})
-        return {"models": models}
-
-    decisions = iter([("thermal_fade", "named"), ("none", "nothing")])
-    monkeypatch.setattr(D.screen, "screen_level", stub)
-    monkeypatch.setattr(D.screen, "rank", lambda levels: [])
-    monkeypatch.setattr(D.screen, "decide", lambda ranked, levels: next(decisions))
-    spec = SimpleNamespace(id="level", tests=[])
-    D._screen_rounds([spec], None, 1, ["thermal_fade", "eccentricity"], (), 2, lambda m: None)
-    (b1, s1, p1), (b2, s2, p2) = seen
-    assert b1 == () and s1 is None and p1 == {}
-    assert b2 == ("thermal_fade",) and s2 == {"fc_fwd": 2.0, "tag": "thermal_fade"}
-    assert p2 == {"eccentricity": {"fc_fwd": 2.0, "tag": "eccentricity"}}
-
 #: round 2 of `frictionuq discover data/brfd-arts-d1 --test sine-0.5Hz-70lb --test
 #: sine-1Hz-70lb --extra-effect chatter --extra-effect takeup_overshoot --max-effects 2` (against
 #: 3-stage + chatter) with numba compiling the kernel for a generic x86-64 CPU

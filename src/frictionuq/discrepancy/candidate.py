@@ -8,15 +8,14 @@ import time
 
 import numpy as np
 
-from ..infer.optimize import clip_in, coarsened, global_start, heuristic_starts, heuristic_values
+from ..infer.optimize import coarsened, global_start, heuristic_starts, heuristic_values
 from . import fits as F
 
 N_EFFECT_STARTS = 12
 N_CANDIDATE_GLOBAL = 1     # differential-evolution runs per candidate (candidate_map)
 
 
-def candidate_map(logpost, base: dict, rng, scales,
-                  previous: dict | None = None) -> tuple[np.ndarray, float]:
+def candidate_map(logpost, base: dict, rng, scales) -> tuple[np.ndarray, float]:
     """MAP of baseline + one effect by least squares from the baseline's MAP, the effect's
     parameters at their default and at N_EFFECT_STARTS draws from their prior (the baseline's
     own multi-start search already placed the other parameters), and at the best point of
@@ -80,8 +79,6 @@ def candidate_map(logpost, base: dict, rng, scales,
     # the baseline's own global searches' ends, with the effect at its default: basins the
     # baseline left for a better one can be where the effect belongs
     refine += [F.theta_in(sp, base["space"], g) for g in base.get("global_points", [])]
-    if previous is not None:      # this effect's MAP of the round before (previous_round_start)
-        refine.append(previous_round_start(sp, th0, previous))
     best, best_lp = th0, F.log_prob(logpost, th0)
     for s0 in refine:
         th = F.white_fit(logpost, s0, rounds=3)
@@ -91,28 +88,10 @@ def candidate_map(logpost, base: dict, rng, scales,
     return best, best_lp
 
 
-def previous_round_start(sp, th0: np.ndarray, previous: dict) -> np.ndarray:
-    """A start for a candidate of a later round of discover (the baseline now holds the effect
-    named in the round before): the candidate's own MAP of the round before (`previous`,
-    {name: value}: the earlier baseline plus this effect), with the parameters it lacks (the
-    newly named effect's) from th0, the new baseline's MAP.
-
-    Why (2026-11-29): on dataset 2's 36 lb level with the Imperial Valley replay (two sines and
-    the replay), round 1 fitted applied_tracking to an RMSE of 1,234 N against the baseline's
-    1,963 N and named chatter; in round 2 every start of applied_tracking on top of 3-stage +
-    chatter ended at that model's MAP with the effect off (-1.6 nats, RMSE 1,764 N), so the
-    channel's effect was never scored against the chatter model."""
-    vals = F.values(sp, th0)
-    vals.update({n: float(v) for n, v in previous.items() if n in vals})
-    return clip_in(sp, sp.to_theta(vals))
-
-
 def fit_candidate(args) -> tuple[np.ndarray, float, float]:
     """(MAP, its log-posterior, seconds) of one candidate (a task of workers.Workers.map): its
-    starts from its own generator, seeded by the level's seed and its number of effects; with
-    a sixth item, its MAP of the round before ({name: value}, previous_round_start) or None."""
-    lp_all, base, seed, n_eff, scales, *prev = args
+    starts from its own generator, seeded by the level's seed and its number of effects."""
+    lp_all, base, seed, n_eff, scales = args
     t0 = time.perf_counter()
-    th, lp = candidate_map(lp_all, base, np.random.default_rng([seed, 17, n_eff]), scales,
-                           prev[0] if prev else None)
+    th, lp = candidate_map(lp_all, base, np.random.default_rng([seed, 17, n_eff]), scales)
     return th, lp, time.perf_counter() - t0

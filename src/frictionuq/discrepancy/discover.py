@@ -151,8 +151,7 @@ def _screen_rounds(specs, cfg, seed, effects, extra_effects, max_effects, log,
     3-stage model; while a round names an effect and fewer than max_effects are named, the next
     round takes the model with the effects named so far as its baseline (started from the named
     model's MAP of the round before, on each level) and screens the remaining candidates against
-    it, by the same rule (screen.decide); each candidate's search also starts from its own MAP of
-    the round before (candidate.previous_round_start). [{"baseline_effects", "named", "reason", "ranked",
+    it, by the same rule (screen.decide). [{"baseline_effects", "named", "reason", "ranked",
     "levels"}] per round."""
     named_so_far: list[str] = []
     rounds = []
@@ -160,16 +159,13 @@ def _screen_rounds(specs, cfg, seed, effects, extra_effects, max_effects, log,
         levels = []
         for i, s in enumerate(specs):
             cands = list(effects) if effects is not None else screen.candidates(s.tests, extra_effects)
-            prev = rounds[-1]["levels"][i]["models"] if rounds else {}
-            start = prev[rounds[-1]["named"]]["map"] if rounds else None
+            start = rounds[-1]["levels"][i]["models"][rounds[-1]["named"]]["map"] if rounds else None
             tag = f"round {r + 1}, " if max_effects > 1 else ""
             log(f"{tag}level {s.id}: screening {len(s.tests)} test(s)"
                 + (f" against 3-stage + {' + '.join(named_so_far)}" if named_so_far else ""))
             lv = screen.screen_level(s.tests, cfg, seed, effects=cands, base_effects=named_so_far,
                                      base_start=start, log=lambda m, i=s.id: log(f"{tag}{i}: {m}"),
-                                     workers=workers,
-                                     previous_maps={e: prev[e]["map"] for e in cands
-                                                    if e in prev and e not in named_so_far})
+                                     workers=workers)
             lv["id"] = s.id
             levels.append(lv)
         ranked = screen.rank(levels) if len(levels[0]["models"]) > 1 else []

@@ -175,8 +175,7 @@ def _score_model(args) -> dict:
 
 
 def screen_level(level_tests, cfg: FitConfig, seed: int, effects=None, log=None,
-                 base_effects=(), base_start: dict | None = None, workers=None,
-                 previous_maps: dict | None = None) -> dict:
+                 base_effects=(), base_start: dict | None = None, workers=None) -> dict:
     """Held-out log-likelihoods of the baseline and every candidate on one level.
 
     base_effects: effects the baseline already has (a later round of discover: the effects
@@ -184,8 +183,7 @@ def screen_level(level_tests, cfg: FitConfig, seed: int, effects=None, log=None,
     of the baseline's MAP found before (the previous round's MAP of the model now taken as the
     baseline), polished instead of a new multi-start search. workers: a workers.Workers whose
     processes run the candidates' fits side by side (default: one after the other, here); the
-    results are the same. previous_maps: {effect: {name: value}}, a candidate's MAP of the round
-    before, one more start of its search (candidate.previous_round_start)."""
+    results are the same."""
     log = log or (lambda m: None)
     pool = workers or Workers(1)
     base_effects = tuple(base_effects)
@@ -209,9 +207,8 @@ def screen_level(level_tests, cfg: FitConfig, seed: int, effects=None, log=None,
     # each candidate from the baseline's MAP (its effect at the default and at prior draws), the
     # heuristic starts and a global search (candidate.candidate_map), side by side in the workers
     lps = {name: F.logpost_for(level_tests, base_effects + (name,), cfg) for name in effects}
-    previous_maps = previous_maps or {}
-    res = pool.map(fit_candidate, [(lps[n][0], base_theta, seed, len(base_effects) + 1, lps[n][1],
-                                     previous_maps.get(n)) for n in effects])
+    res = pool.map(fit_candidate, [(lps[n][0], base_theta, seed, len(base_effects) + 1, lps[n][1])
+                                    for n in effects])
     for name, (th_c, lp_c, secs) in zip(effects, res):
         fitted[name] = [lps[name][0], th_c, lp_c, secs]
     changed, moved = cross_refit(fitted, log, pool.map)
