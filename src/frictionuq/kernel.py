@@ -26,9 +26,9 @@ Skipping changes the result by rounding only (relative ~1e-15), never by an appr
 The last two skips return the same bits as the update they skip (benchmarks/bench_kernel_change.py
 against the kernel without them: 1,200 random records and parameter sets, effects on and off,
 both models, eps 0 and > 0, none different; tests/test_twins.py regenerates the shipped twins
-byte for byte). Gain, 16 walkers on one thread (2026-11-29, that benchmark): 1.11-1.13x on the
-real ARTS 35 lb sines at their MAP, 1.04-1.40x on the BRFD twin's harmonics, 1.13-1.27x on the
-MFD twin's.
+byte for byte). Gain, 16 walkers on one thread (2026-11-29, that benchmark, nothing else
+running): 1.12-1.14x on the real ARTS 35 lb sines at their MAP, 1.06-1.31x on the BRFD twin's
+harmonics, 1.11-1.13x on the MFD twin's.
 Inside the blend (s < s_sat), its three smooth steps softplus(s - d2), tanh(s/2w) and
 m(s - d2 - d3) share one exponential exp(-s/w) (_blend_terms; again rounding only): two
 transcendental calls per sample instead of four, 1.1-1.5x faster on records that spend most of
