@@ -43,8 +43,14 @@ REAL_35LB = dict(fc_fwd=11010.16, fc_bwd=7386.03, fs_fwd=11058.08, fs_bwd=9971.1
 
 
 def load_revision(rev: str, where: Path):
-    src = subprocess.run(["git", "show", f"{rev}:src/frictionuq/kernel.py"], cwd=ROOT,
-                         capture_output=True, text=True, check=True).stdout
+    got = subprocess.run(["git", "show", f"{rev}:src/frictionuq/kernel.py"], cwd=ROOT,
+                         capture_output=True, text=True)
+    if got.returncode != 0:
+        why = got.stderr.strip().splitlines()[-1] if got.stderr.strip() else "git failed"
+        print(f"bench_kernel_change: --against {rev}: no src/frictionuq/kernel.py there ({why})",
+              file=sys.stderr)
+        sys.exit(2)
+    src = got.stdout
     path = where / "kernel_ref.py"
     path.write_text(src)
     spec = importlib.util.spec_from_file_location("kernel_ref", path)
@@ -135,7 +141,6 @@ def main(argv=None) -> None:
                   f"{per['ref'] / per['now']:9.2f}  {'yes' if same else 'NO'}")
         total, differ = random_differences(ref, a.random)
         print(f"\nrandom records and parameter sets: {total} cases, {differ} with different bits")
-    sys.exit(0)
 
 
 if __name__ == "__main__":
