@@ -380,7 +380,8 @@ def simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, F):
             if use_fade:
                 E += abs(Fk * dx)
             # the next sample overwrites z (z = d Fb / s0, still inside the take-up) when it is
-            # not released: then this update is dead
+            # not released: then this update is dead. The reversal test is the one at the top of
+            # the loop, applied to sample k + 1 (x_ext, x_r, d as they stand): keep the two alike
             dead = False
             if model == THREE_STAGE and backlash:
                 xn = x[k + 1]
