@@ -6,13 +6,14 @@ wall time, then the hit rate and false-alarm count, in one run.
     .venv/bin/python benchmarks/bench_discover.py [--full] [--refit] [--seeds 1 2] [--devices brfd mfd]
         [--effects none eccentricity ...] [--extra-effects takeup_overshoot] [--simulate-at raw|kept]
         [--also chatter --max-effects 2] [--chatter-form bursts] [--jobs 2]
-        [--samples-per-cycle 400] [--sampler ensemble|chains|both] [--verbose]
+        [--samples-per-cycle 400] [--sampler chains|ensemble|both] [--verbose]
 
 --full: full-length records (two harmonics of ~5,000 samples and a Kobe replay, the issue's speed
 case); default: the short CI campaigns. --refit: also the MCMC refit with the named effect
 (parameters inside their 95 % intervals, rmse_after / noise scale). --sampler: the refit's
-stored run as the default ensemble or as bench_fit.py's opt-in `chains` preset, or both side by
-side on the same campaigns (the screening runs again for each). Not a test: figures only.
+stored run as the default (16 independent chains) or as the default before 2026-12-01 (the
+burn-in's ensemble: bench_fit.py's SAMPLERS), or both side by side on the same campaigns (the
+screening runs again for each). Not a test: figures only.
 """
 from __future__ import annotations
 
@@ -65,7 +66,7 @@ def main(argv=None) -> int:
     ap.add_argument("--samples-per-cycle", type=float, default=100.0, help="the fits' decimation "
                     "(FitConfig.samples_per_cycle): default 100, the CI tests' setting (the CLI's "
                     "default is 400, which keeps every sample of these 100 Hz campaigns)")
-    ap.add_argument("--sampler", choices=["ensemble", "chains", "both"], default="ensemble")
+    ap.add_argument("--sampler", choices=["chains", "ensemble", "both"], default="chains")
     ap.add_argument("--verbose", action="store_true", help="also the top two candidates' gain per "
                     "held-out unit and the decision's reason")
     a = ap.parse_args(argv)

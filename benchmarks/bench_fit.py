@@ -1,7 +1,7 @@
 """Calibration benchmark (issue 3 item 13): full fits to the convergence criteria, side by side.
 
     .venv/bin/python benchmarks/bench_fit.py [--case twin|arts-d1|all] [--simulate-at raw|kept|both]
-        [--sampler ensemble|chains|both] [--jobs 1|2|both] [--max-steps N] [--tests ID ...]
+        [--sampler chains|ensemble|both] [--jobs 1|2|both] [--max-steps N] [--tests ID ...]
         [--out DIR]
 
 Cases:
@@ -15,9 +15,10 @@ wall time) and whether it met R-hat <= 1.01 and ESS >= 400 for every parameter.
 --simulate-at: the decimated records' model force simulated at the raw rate and filtered like the
 data (the default configuration), on the decimated displacement (cheaper, biased:
 infer.likelihood), or both side by side with their time ratio.
---sampler: the stored run as the default ensemble (DE + independence move, the burn-in's walkers),
-as 16 independent chains from a profiled start ball (`run_walkers=16, independence_weight=0.8,
-start_profile=True`: infer.sampler), or both side by side with their time ratio.
+--sampler: the stored run as 16 independent chains from a profiled start ball (the default,
+infer.sampler), as the default before 2026-12-01 (the burn-in's ensemble of walkers, DE moves
+beside the independence move at weight 0.5, the Gauss-Newton start ball: `stored_run="ensemble",
+independence_weight=0.5, start_profile=False`), or both side by side with their time ratio.
 --jobs: the campaign's fits one after the other, each simulating on every core (1, the default),
 two side by side in spawned processes with one numba thread each (2: `fit --jobs 2`), or both
 with their time ratio (the same posteriors either way).
@@ -48,11 +49,13 @@ CASES = {
 }
 
 
-SAMPLERS = {"ensemble": {},
-            "chains": {"run_walkers": 16, "independence_weight": 0.8, "start_profile": True}}
+#: the stored run's designs: the default (16 independent chains, infer.sampler) and the default
+#: before 2026-12-01 (the burn-in's ensemble, independence weight 0.5, Gauss-Newton start ball)
+SAMPLERS = {"chains": {},
+            "ensemble": {"stored_run": "ensemble", "independence_weight": 0.5, "start_profile": False}}
 
 
-def run(case: str, out: Path, simulate_at: str = "raw", sampler: str = "ensemble",
+def run(case: str, out: Path, simulate_at: str = "raw", sampler: str = "chains",
         tests=None, jobs: int = 1, max_steps: int | None = None) -> dict:
     path, sel, target = CASES[case]
     caps = {"max_steps": max_steps} if max_steps else {}
@@ -77,7 +80,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--case", choices=["twin", "arts-d1", "all"], default="all")
     ap.add_argument("--simulate-at", choices=["raw", "kept", "both"], default="raw")
-    ap.add_argument("--sampler", choices=["ensemble", "chains", "both"], default="ensemble")
+    ap.add_argument("--sampler", choices=["chains", "ensemble", "both"], default="chains")
     ap.add_argument("--tests", nargs="+", default=None, help="only these tests of the campaign")
     ap.add_argument("--jobs", choices=["1", "2", "both"], default="1",
                     help="the campaign's fits one after the other (1), two side by side (2), or both")

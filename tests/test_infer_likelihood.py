@@ -242,11 +242,13 @@ def test_noise_prior_overrides_that_would_be_ignored_are_refused():
 def test_interrupted_run_resumes_without_losing_steps(small_fit, tmp_path):
     """A run stopped after 40 stored steps and resumed to 60 gives exactly the chain of an
     uninterrupted 60-step run (positions, random state and the independence proposal are all
-    restored from the HDF5 file), and the first 40 steps are the stored ones."""
+    restored from the HDF5 file), and the first 40 steps are the stored ones. The ensemble's
+    stored run (the default's, 16 chains: the next test)."""
     import emcee
     lp, scales, _ = small_fit
     kw = dict(nwalkers=32, chunk=20, min_steps=20, burn_rounds=2, burn_steps=10, burn_max_rounds=2,
-              n_random_starts=0, n_prior_starts=1, progress=False, tau_factor=1e9)
+              n_random_starts=0, n_prior_starts=1, progress=False, tau_factor=1e9,
+              stored_run="ensemble")
     full = sample(lp, scales, seed=3, backend_path=tmp_path / "full.h5",
                   cfg=SamplerConfig(max_steps=60, thin_output=1, **kw), resume=False)
     part = tmp_path / "part.h5"
@@ -263,13 +265,14 @@ def test_interrupted_run_resumes_without_losing_steps(small_fit, tmp_path):
 
 
 def test_independent_chains_run_reproduces_and_resumes(small_fit, tmp_path):
-    """With `run_walkers` (and the profiled start) the stored run has that many walkers (the
-    burn-in keeps its 32), the same seed gives the same chain, and a run stopped after 40 stored
-    steps and resumed to 60 equals the uninterrupted one (the random walk's covariance is
-    restored with the proposal)."""
+    """The default stored run, independent chains: it has `run_walkers` walkers (the burn-in
+    keeps its 32), the same seed gives the same chain, and a run stopped after 40 stored steps
+    and resumed to 60 equals the uninterrupted one (the random walk's covariance is restored
+    with the proposal)."""
     import emcee
     lp, scales, _ = small_fit
-    kw = dict(nwalkers=32, run_walkers=8, independence_weight=0.8, start_profile=True, chunk=20,
+    assert SamplerConfig().stored_run == "chains" and SamplerConfig().run_walkers == 16
+    kw = dict(nwalkers=32, run_walkers=8, chunk=20,
               min_steps=20, burn_rounds=2, burn_steps=10, burn_max_rounds=2, n_random_starts=0,
               n_prior_starts=1, progress=False, tau_factor=1e9, thin_output=1)
     full = sample(lp, scales, seed=3, backend_path=tmp_path / "full.h5",

@@ -122,8 +122,7 @@ def test_independent_chains_move_each_walker_on_its_own_and_sample_the_target():
     from frictionuq.infer.sampler import _moves
     from test_infer_proposal import _log_p, _skewed, check_skewed_sample
     pool = _skewed(600, np.random.default_rng(7)) + np.array([0.2, 0.0, -0.1])
-    moves = _moves(SamplerConfig(run_walkers=8, independence_weight=0.8), Proposal.fit(pool),
-                   stored=True)
+    moves = _moves(SamplerConfig(run_walkers=8), Proposal.fit(pool), stored=True)
     assert [type(m) for m, _ in moves] == [IndependenceMove, emcee.moves.GaussianMove]
     assert [w for _, w in moves] == [0.8, pytest.approx(0.2)]
     s = emcee.EnsembleSampler(8, 3, _log_p, vectorize=True, moves=moves)
@@ -138,6 +137,8 @@ def test_independent_chains_move_each_walker_on_its_own_and_sample_the_target():
 
 def test_run_walkers_is_refused_below_four_and_weight_above_one():
     from frictionuq.errors import InputError
+    with pytest.raises(InputError, match="stored_run must be one of chains, ensemble, got 'chain'"):
+        SamplerConfig(stored_run="chain")
     with pytest.raises(InputError, match="run_walkers"):
         SamplerConfig(run_walkers=3)
     with pytest.raises(InputError, match="independence_weight"):

@@ -53,12 +53,20 @@ def test_defaults_are_filled_in(tmp_path):
     assert fc.tests == ("sine-2Hz-36lb-0.5in",) and fc.sampler.progress is False
 
 
+def test_the_stored_run_is_chosen_in_the_sampler_table(tmp_path):
+    wf = load_workflow(_write(tmp_path, "\n[fit.sampler]\nstored_run = 'ensemble'\n"))
+    assert wf.fit_config().sampler.stored_run == "ensemble"
+    assert load_workflow(_write(tmp_path)).fit_config().sampler.stored_run == "chains"
+
+
 @pytest.mark.parametrize("extra, where, problem", [
     ("\n[fitt]\nby = 'test'\n", "fitt", "unknown key"),
     ("\n[fit.sampler]\nmax_step = 10\n", "[fit.sampler].max_step", "unknown key"),
     ("\n[fit.sampler]\nmax_steps = -10\n", "[fit.sampler].max_steps", "must be > 0"),
     ("\n[fit.sampler]\nmax_steps = 2.5\n", "[fit.sampler].max_steps", "integer"),
     ("\n[fit.sampler]\nmax_steps = 100\nmin_steps = 500\n", "[fit.sampler].min_steps", "exceeds"),
+    ("\n[fit.sampler]\nstored_run = 'chain'\n", "[fit.sampler].stored_run", "must be one of chains, ensemble"),
+    ("\n[fit.sampler]\nstored_run = 3\n", "[fit.sampler].stored_run", "non-empty string"),
     ("\n[law]\nfamily = 'cubic'\n", "[law].family", "must be one of"),
     ("\n[report]\npublished = 'xyz'\n", "[report].published", "must be one of"),
     ("\n[predict]\nn_draws = 'many'\n", "[predict].n_draws", "integer"),

@@ -31,8 +31,7 @@ def _cmd_twin(a):
 
 def _cmd_fit(a):
     from .infer.fit import FitConfig, fit_campaign
-    from .infer.sampler import SamplerConfig
-    samp = SamplerConfig(**({"max_steps": a.max_steps} if a.max_steps is not None else {}))
+    samp = _sampler_config(a)
     cfg = FitConfig(model=a.model, effects=tuple(a.effect or ()), likelihood=a.likelihood,
                     seed=a.seed, sampler=samp, tests=tuple(a.test) if a.test else None,
                     kinds=tuple(a.kind) if a.kind else None, simulate_at=a.simulate_at,
@@ -108,8 +107,7 @@ def _cmd_advantage(a):
 def _cmd_compare(a):
     from .infer.compare import compare_campaign, format_table
     from .infer.fit import FitConfig
-    from .infer.sampler import SamplerConfig
-    samp = SamplerConfig(**({"max_steps": a.max_steps} if a.max_steps is not None else {}))
+    samp = _sampler_config(a)
     models = list(dict.fromkeys(a.model or ["three_stage", "lugre"]))
     cfgs = {m: FitConfig(model=m, likelihood=a.likelihood, seed=a.seed, sampler=samp) for m in models}
     r = compare_campaign(a.campaign, a.out, cfgs, kinds=a.kind, tests=a.test, seed=a.seed,
@@ -124,8 +122,7 @@ def _cmd_compare(a):
 def _cmd_discover(a):
     from .discrepancy.discover import discover
     from .infer.fit import FitConfig
-    from .infer.sampler import SamplerConfig
-    samp = SamplerConfig(**({"max_steps": a.max_steps} if a.max_steps is not None else {}))
+    samp = _sampler_config(a)
     cfg = FitConfig(likelihood=a.likelihood, sampler=samp, tests=tuple(a.test) if a.test else None,
                     kinds=tuple(a.kind) if a.kind else None, drive_lowpass=a.drive_lowpass)
     d = discover(a.campaign, a.out, cfg, seed=a.seed, refit=not a.no_refit,
@@ -203,12 +200,24 @@ def _cmd_clean(a):
 
 
 def _add_selection(s, max_steps_help: str) -> None:
-    """Seed, test selection and step cap, shared by the commands that run fits."""
+    """Seed, test selection, step cap and the stored run's design, shared by the commands that
+    run fits."""
+    from .infer.sampler import STORED_RUNS
     s.add_argument("--seed", type=int, default=1)
     s.add_argument("--test", action="append", metavar="ID", help="only this test (repeatable)")
     s.add_argument("--kind", action="append", choices=["harmonic", "earthquake", "other"],
                    help="only tests of this kind (repeatable)")
     s.add_argument("--max-steps", type=int, default=None, help=max_steps_help)
+    s.add_argument("--stored-run", choices=STORED_RUNS, default=None,
+                   help="the sampler's stored run: 16 independent chains (default) or the burn-in's "
+                        "ensemble of walkers with differential-evolution moves")
+
+
+def _sampler_config(a):
+    """The SamplerConfig of the options --max-steps and --stored-run (the rest: defaults)."""
+    from .infer.sampler import SamplerConfig
+    kw = {"max_steps": a.max_steps, "stored_run": a.stored_run}
+    return SamplerConfig(**{k: v for k, v in kw.items() if v is not None})
 
 
 def _add_drive_lowpass(s) -> None:

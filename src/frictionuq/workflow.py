@@ -177,7 +177,7 @@ class _Checker:
 
 
 def _sampler(c: _Checker, t: dict, where: str) -> dict:
-    from .infer.sampler import SamplerConfig
+    from .infer.sampler import STORED_RUNS, SamplerConfig
     if not isinstance(t, dict):
         c.fail(where, "must be a table of sampler settings")
     fields = {f.name: f for f in dataclasses.fields(SamplerConfig)}
@@ -192,6 +192,8 @@ def _sampler(c: _Checker, t: dict, where: str) -> dict:
             c.fail(f"{where}.{name}", "must be given a value (omit the key for the default)")
         if typ.startswith("bool"):
             out[name] = c.bool_(t, name, where, None)
+        elif typ.startswith("str"):
+            out[name] = c.str_(t, name, where, choices=STORED_RUNS if name == "stored_run" else None)
         else:
             out[name] = c.num(t, name, where, integer=typ.startswith("int"),
                               minimum=0 if name.startswith("n_") else None,

@@ -8,12 +8,13 @@ until the chain passes the convergence criteria.
   posteriors of real records press against prior bounds (a take-up length d3 near 0, v_s at its
   upper bound, sigma2 at its lower one); in box coordinates about half of all proposals fell
   outside the box and were rejected, and the walkers piled up at the walls.
-* Start: walkers drawn from N(MAP, Sigma/4) with Sigma the Gauss-Newton covariance at the MAP
-  (AR(1)-inflated, prior box as a weak regulariser), kept 0.1 % of the box away from its walls.
-  Opt-in `start_profile`: each parameter's half-width below and above the MAP from a
-  one-dimensional profile instead (walkers.profile_sides; one batch of about 20 ndim
-  evaluations). BRFD twin 267 N: the burn-in settled after 3 rounds instead of 7-8 (d3, whose
-  Gauss-Newton sd is 40 times too small on one side, no longer has to spread round by round).
+* Start: walkers around the MAP, each parameter's half-width below and above it from a
+  one-dimensional profile (`start_profile`, the default: walkers.profile_sides; one batch of
+  about 20 ndim evaluations), with the Gauss-Newton correlation (AR(1)-inflated, prior box as a
+  weak regulariser), kept 0.1 % of the box away from its walls; with start_profile off,
+  N(MAP, Sigma/4) with Sigma the Gauss-Newton covariance. BRFD twin 267 N: the burn-in settled
+  after 3 rounds instead of 7-8 (d3, whose Gauss-Newton sd is 40 times too small on one side,
+  no longer has to spread round by round).
 * Burn-in (not stored, always discarded): at least `burn_rounds` rounds of `burn_steps` steps,
   more (up to `burn_max_rounds`) while the median walker's log-posterior still rises by more
   than sqrt(D/2) per round, walkers are stuck, or the ensemble is still spreading: the proposal
@@ -30,30 +31,34 @@ until the chain passes the convergence criteria.
   narrow for the weakly identified parameters and the MAP need not be the mode; the pooled
   re-initialisation spreads the ensemble over the posterior and drops stuck walkers (a standard
   emcee practice; it only affects the discarded burn-in).
-* Moves: differential evolution (70 %), DE with gamma = 1 (10 %: the "mode-jumping" step of
-  ter Braak 2006) and DE snooker (20 %) (ter Braak & Vrugt 2008; emcee docs) in the first
-  burn-in round. From the second round on, half of the steps are an independence
+* Moves of the burn-in: differential evolution (70 %), DE with gamma = 1 (10 %: the
+  "mode-jumping" step of ter Braak 2006) and DE snooker (20 %) (ter Braak & Vrugt 2008; emcee
+  docs) in the first round. From the second round on, half of the steps are an independence
   Metropolis-Hastings move (proposal.IndependenceMove: a multivariate t, 5 degrees of freedom,
   on Johnson SU-Gaussianised marginals, fitted to the previous burn-in round with its covariance
-  inflated by 1.25^2, fixed for the whole stored run and kept in the HDF5 file) and the rest DE
-  (35 %), DE gamma = 1 (5 %) and snooker (10 %).
-  Why: the R-hat criterion treats each walker as a chain, so it needs every walker's own chain to
-  hold about a hundred effective draws; with DE alone tau is 60-80 steps on a twin force level
-  (R-hat still 1.014 after 12,000 steps), with the independence move a walker decorrelates in a
-  few steps wherever the posterior is close to the t. DE needs more than 2 x ndim walkers; the
-  default is max(32, 2 ndim + 4).
-* Independent chains (opt-in, `run_walkers`): since R-hat needs about a hundred effective draws
-  per walker whatever the walker count, the stored run's cost is proportional to the number of
-  walkers. With `run_walkers` = n the stored run keeps n of the burn-in's final positions and
-  moves each walker on its own: the independence move (weight `independence_weight`) and a
-  Gaussian random walk with the burn-in round's covariance scaled by 2.38^2 / D (no ensemble
-  move, so the walkers are independent Markov chains, the setting R-hat was made for). The
-  burn-in keeps its ensemble moves and its walkers. BRFD twin 267 N, one shared burn-in: 16
-  walkers with weight 0.8 met R-hat <= 1.01 after 2,000 stored steps (32,016 evaluations)
-  against 2,500 steps (80,032) for the default ensemble (docs/log-calibration.md, 2026-11-28).
-  Real arts-d1 35 lb: 1.74 times fewer evaluations to convergence, the same posterior. Not the
-  default: at 70 lb (two d3 modes) the ensemble's DE jumps carry walkers between the modes and
-  the independent chains do not (R-hat 1.259 against 1.176 after 6,000 stored steps).
+  inflated by 1.25^2; the last round's proposal is fixed for the whole stored run and kept in
+  the HDF5 file) and the rest DE (35 %), DE gamma = 1 (5 %) and snooker (10 %). DE needs more
+  than 2 x ndim walkers; the burn-in has max(32, 2 ndim + 4).
+* The stored run (`stored_run`): R-hat treats each walker as a chain, so it needs every
+  walker's own chain to hold about a hundred effective draws whatever the walker count, and the
+  stored run's cost is proportional to its walkers (with DE alone tau is 60-80 steps on a twin
+  force level, R-hat still 1.014 after 12,000 steps; the independence move decorrelates a
+  walker in a few steps wherever the posterior is close to the t).
+  - "chains" (the default since 2026-12-01): `run_walkers` (16) of the burn-in's final
+    positions, each moved on its own: the independence move (weight `independence_weight`,
+    0.8) and a Gaussian random walk with the last burn-in round's covariance scaled by
+    2.38^2 / D. No ensemble move, so the walkers are independent Markov chains, the setting
+    R-hat was made for.
+  - "ensemble": the burn-in's walkers with the independence move (the same weight) and the DE
+    moves for the rest (70/10/20 as above).
+  Measured (docs/log-calibration.md): BRFD twin 267 N, one shared burn-in, 16 chains met R-hat
+  <= 1.01 after 2,000 stored steps (32,016 evaluations) against 2,500 steps (80,032) for the
+  ensemble; whole fits (`benchmarks/bench_fit.py --sampler both`) twin 267 N 2.1-2.5 times
+  fewer evaluations, real arts-d1 35 lb 1.74 times, the same posteriors within Monte Carlo
+  error. At the real 70 lb level (heavy d3 and fs_fwd tails, the slowest to mix) the chains
+  were worse on the code of 2026-11-28 (R-hat 1.259 against 1.176 after 6,000 stored steps) and
+  are better on the code of 2026-12-01 (R-hat 1.045 against 1.088 after 6,000 steps, in 187 s
+  against 180 s), which made them the default.
 * Stopping: every `chunk` steps of the stored run, on its part after the first
   `discard_fraction` (the burn-in phase is already discarded): the integrated autocorrelation
   time tau of every parameter (emcee.autocorr) and ArviZ's rank-normalised R-hat and bulk/tail
@@ -90,6 +95,10 @@ from .priors import RecordScales
 from .walkers import initial_ball, pooled_states, profile_sides, reinitialise
 
 
+#: the stored run's two designs (SamplerConfig.stored_run; module docstring)
+STORED_RUNS = ("chains", "ensemble")
+
+
 @dataclass
 class SamplerConfig:
     nwalkers: int | None = None       # default: max(32, 2 * ndim + 4) rounded up to even
@@ -112,9 +121,11 @@ class SamplerConfig:
     n_global_starts: int = 2          # differential-evolution runs: at least this many; with 2+,
                                       # more until two agree (optimize._global_searches)
     independence: bool = True         # add the independence move fitted to the burn-in
-    independence_weight: float = 0.5  # its share of the stored run's moves
-    run_walkers: int | None = None    # stored run: None = the burn-in's ensemble; n = n independent chains
-    start_profile: bool = False       # start ball from 1-D profiles (walkers.profile_sides)
+    independence_weight: float = 0.8  # its share of the stored run's moves
+    stored_run: str = "chains"        # "chains": run_walkers independent chains; "ensemble": the
+                                      # burn-in's walkers with DE moves beside the independence move
+    run_walkers: int = 16             # the chains' number
+    start_profile: bool = True        # start ball from 1-D profiles (walkers.profile_sides)
     thin_output: int | None = None    # default: about tau/4
     progress: bool | None = None      # default: on a terminal
 
@@ -124,6 +135,11 @@ class SamplerConfig:
         for f in fields(self):
             v, typ = getattr(self, f.name), str(f.type)
             if v is None and "None" in typ or typ.startswith("bool"):
+                continue
+            if typ.startswith("str"):
+                if v not in STORED_RUNS:
+                    raise InputError(f"sampler: {f.name} must be one of {', '.join(STORED_RUNS)}, "
+                                     f"got {v!r}")
                 continue
             if typ.startswith("int"):
                 low = 0 if f.name.startswith("n_") else 1
@@ -137,7 +153,7 @@ class SamplerConfig:
         if not self.independence_weight <= 1:
             raise InputError(f"sampler: independence_weight must be in (0, 1], got "
                              f"{self.independence_weight!r}")
-        if self.run_walkers is not None and self.run_walkers < 4:
+        if self.run_walkers < 4:
             raise InputError(f"sampler: run_walkers must be >= 4 (R-hat compares chains), got "
                              f"{self.run_walkers!r}")
 
@@ -197,7 +213,7 @@ def fit_proposal(chain: np.ndarray, log_prob: np.ndarray) -> Proposal:
 
 def _independent(cfg: SamplerConfig) -> bool:
     """Whether the stored run moves each walker on its own (module docstring)."""
-    return cfg.run_walkers is not None and cfg.independence
+    return cfg.stored_run == "chains" and cfg.independence
 
 
 def _moves(cfg: SamplerConfig, proposal=None, stored: bool = False):
