@@ -62,10 +62,10 @@ until the chain passes the convergence criteria.
 * Stopping: every `chunk` steps of the stored run, on its part after the first
   `discard_fraction` (the burn-in phase is already discarded): the integrated autocorrelation
   time tau of every parameter (emcee.autocorr) and ArviZ's rank-normalised R-hat and bulk/tail
-  ESS (walkers as chains) on the draws the fit reports (thinned, as parameter values: check). The run stops when the kept chain is longer than `tau_factor` x max
-  tau, max tau changed by less than `tau_rtol` since the previous check, and every parameter has
-  R-hat <= `r_hat_max` and ESS >= `ess_min`; or at `max_steps` (then the fit is reported as not
-  converged).
+  ESS (walkers as chains) on the draws the fit reports (thinned, as parameter values: check).
+  The run stops when the kept chain is longer than `tau_factor` x max tau, max tau changed by
+  less than `tau_rtol` since the previous check, and every parameter has R-hat <= `r_hat_max`
+  and ESS >= `ess_min`; or at `max_steps` (then the fit is reported as not converged).
 * Storage (storage.py): emcee's HDF5 backend (in u coordinates), written every step: an
   interrupted run resumes from its last step (random state included) with `resume=True`.
 * Reproducibility: emcee copies NumPy's global random state at construction, so the sampler's
@@ -76,7 +76,6 @@ from __future__ import annotations
 import os
 import sys
 import time
-import warnings
 from dataclasses import asdict, dataclass, field, fields
 from numbers import Integral, Real
 from pathlib import Path
@@ -84,8 +83,8 @@ from pathlib import Path
 import emcee
 import numpy as np
 
-from .. import azadapter
 from ..errors import InputError
+from .convergence import autocorr_time, check, thinning
 from .likelihood import N_STATS, LogPosterior, UnboundedPosterior
 from .localfit import gauss_newton_cov
 from .optimize import find_map
@@ -191,15 +190,6 @@ def _nwalkers(cfg: SamplerConfig, ndim: int) -> int:
     return int(w + (w % 2))
 
 
-def _tau(chain: np.ndarray) -> np.ndarray:
-    """Integrated autocorrelation time per parameter (steps); a parameter whose walkers did not
-    move at all gets the chain length (i.e. not converged), never NaN."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        tau = emcee.autocorr.integrated_time(chain, quiet=True, tol=0)
-    return np.where(np.isfinite(tau), tau, float(chain.shape[0]))
-
-
 def _progress(cfg) -> bool:
     if cfg.progress is not None:
         return cfg.progress
@@ -229,30 +219,6 @@ def _moves(cfg: SamplerConfig, proposal=None, stored: bool = False):
     moves = [(IndependenceMove(proposal), w), (de, 0.7 * rest),
              (emcee.moves.DEMove(gamma0=1.0), 0.1 * rest), (emcee.moves.DESnookerMove(), 0.2 * rest)]
     return [m for m in moves if m[1] > 0]
-
-
-def _thin(cfg: SamplerConfig, tau: np.ndarray) -> int:
-    """The stored draws' thinning: cfg.thin_output, or about a quarter of the largest tau."""
-    return int(cfg.thin_output or max(1, int(np.max(tau) / 4)))
-
-
-def check(chain: np.ndarray, cfg: SamplerConfig, space=None) -> dict:
-    """Convergence statistics of a kept chain (steps, walkers, ndim; the sampler's unbounded
-    coordinates): tau on the whole kept chain, R-hat and ESS on the draws the fit will report,
-    i.e. thinned as _result thins them (emcee's get_chain(thin=...) picks steps thin - 1, 2 thin -
-    1, ...) and, given the `space`, as parameter values (SI, ratio parameters multiplied out),
-    so that the stopping rule is the summary's rule (outputs.summary_entry). Before 2026-12-01
-    it ran on the unthinned chain in u: a synthetic 267 N fit stopped at R-hat 1.0098 there and
-    reported 1.0105 for sigma0, "not converged"."""
-    tau = _tau(chain)
-    thin = _thin(cfg, tau)
-    kept = chain[thin - 1::thin]
-    if space is not None:
-        kept = space.to_values(space.from_u(kept))
-    diag = azadapter.diagnostics(np.transpose(kept, (1, 0, 2)))
-    return {"tau": tau, "tau_max": float(np.max(tau)), "r_hat_max": float(np.max(diag["r_hat"])),
-            "ess_min": float(min(np.min(diag["ess_bulk"]), np.min(diag["ess_tail"]))),
-            "r_hat": diag["r_hat"]}
 
 
 def burn_in(target, state: np.ndarray, cfg: SamplerConfig, seed: int, rng, log=None,
@@ -391,8 +357,8 @@ def _result(sampler, cfg, sp, n_done, converged, theta_map, lp_map, logpost, t0,
             history, map_start: str = "search") -> SampleResult:
     ndim = sp.ndim
     burn = int(n_done * cfg.discard_fraction)
-    tau = _tau(sampler.get_chain(discard=burn))
-    thin = _thin(cfg, tau)
+    tau = autocorr_time(sampler.get_chain(discard=burn))
+    thin = thinning(cfg, tau)
     u = sampler.get_chain(discard=burn, thin=thin)
     theta = sp.from_u(u)
     lp_u = sampler.get_log_prob(discard=burn, thin=thin)
