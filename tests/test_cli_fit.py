@@ -23,3 +23,34 @@ def test_fit_refuses(tmp_path, capsys, extra, fragment):
     assert code == 2, err
     assert err.count("\n") == 1 and fragment in err, err
     assert not (out / "summary.json").exists()
+
+
+@pytest.mark.parametrize("command, target", [
+    ("fit", "frictionuq.infer.fit.fit_campaign"),
+    ("compare", "frictionuq.infer.compare.compare_campaign"),
+    ("discover", "frictionuq.discrepancy.discover.discover"),
+])
+def test_stored_run_option_reaches_the_sampler_config(tmp_path, monkeypatch, command, target):
+    """--stored-run ensemble (or chains, the default) and --max-steps reach the SamplerConfig of
+    the fit, compare and discover commands; the library call is replaced by a stub that records
+    the configuration and stops."""
+    import importlib
+
+    class Stop(Exception):
+        pass
+
+    seen = []
+
+    def stub(*args, **kw):
+        cfgs = [a for a in list(args) + list(kw.values()) if hasattr(a, "sampler")]
+        cfgs += [c for a in list(args) + list(kw.values()) if isinstance(a, dict)
+                 for c in a.values() if hasattr(c, "sampler")]
+        seen.extend(c.sampler for c in cfgs)
+        raise Stop
+    mod, name = target.rsplit(".", 1)
+    monkeypatch.setattr(importlib.import_module(mod), name, stub)
+    for extra, want in (([], "chains"), (["--stored-run", "ensemble"], "ensemble")):
+        seen.clear()
+        with pytest.raises(Stop):
+            main([command, TWIN, "--out", str(tmp_path / "out"), "--max-steps", "7"] + extra)
+        assert seen and all(s.stored_run == want and s.max_steps == 7 for s in seen), seen
