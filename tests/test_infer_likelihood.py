@@ -242,8 +242,8 @@ def test_noise_prior_overrides_that_would_be_ignored_are_refused():
 def test_interrupted_run_resumes_without_losing_steps(small_fit, tmp_path):
     """A run stopped after 40 stored steps and resumed to 60 gives exactly the chain of an
     uninterrupted 60-step run (positions, random state and the independence proposal are all
-    restored from the HDF5 file), and the first 40 steps are the stored ones. The ensemble's
-    stored run (the default's, 16 chains: the next test)."""
+    restored from the HDF5 file), and the first 40 steps are the stored ones. Here with the
+    ensemble's stored run; the default's, independent chains, is the next test."""
     import emcee
     lp, scales, _ = small_fit
     kw = dict(nwalkers=32, chunk=20, min_steps=20, burn_rounds=2, burn_steps=10, burn_max_rounds=2,
