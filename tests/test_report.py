@@ -179,6 +179,7 @@ def test_unconverged_fits_are_flagged(report_run, rendered_report):
     for f in summary["fits"]:
         part = sub_html(html, f"fit-{f['id']}")
         assert "converged: NO" in part and f"Fit {f['id']} did NOT converge" in part
+        assert "16 independent chains (independence move and random walk)" in part   # the default
     assert "Computed from fits that did NOT converge" in section_html(html, "advantage")
     assert "Fits of the comparison that did NOT converge" in section_html(html, "comparison")
 

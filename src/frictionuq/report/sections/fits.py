@@ -108,6 +108,20 @@ def posterior_figures(ctx, fid: str, dt) -> list[dict]:
     return out
 
 
+def _stored_run(rec: dict, smp: dict) -> str:
+    """How the stored run moved its walkers, from the fit's sampler config (fit.json)."""
+    cfg = (rec.get("config") or {}).get("sampler") or {}
+    design = cfg.get("stored_run")
+    if design is None and "run_walkers" in cfg:      # a fit written before 2026-12-01
+        design = "ensemble" if cfg["run_walkers"] is None else "chains"
+    n = smp.get("walkers", DASH)
+    if design == "chains":
+        return f"{n} independent chains (independence move and random walk)"
+    if design == "ensemble":
+        return f"ensemble of {n} walkers (independence and differential-evolution moves)"
+    return DASH
+
+
 def convergence(ctx, f: dict) -> list[dict]:
     rules = _rules()
     rec = ctx.fit_record(f["id"])
@@ -130,7 +144,8 @@ def convergence(ctx, f: dict) -> list[dict]:
             f"Fit {f['id']} did NOT converge. Parameters failing the rule: "
             f"{', '.join(f.get('not_converged_parameters') or []) or 'none'}; sampler's own "
             f"stopping rule met: {'yes' if f.get('sampler_criteria_met') else 'no'}."))
-    info = kv_table([("stored steps", smp.get("steps", f.get("sampler_steps", DASH))),
+    info = kv_table([("stored run", _stored_run(rec, smp)),
+                     ("stored steps", smp.get("steps", f.get("sampler_steps", DASH))),
                      ("burn-in phase steps (discarded)", smp.get("burn_in_phase_steps", DASH)),
                      ("discarded from the stored run", smp.get("burn", DASH)),
                      ("thinning", smp.get("thin", DASH)), ("walkers", smp.get("walkers", DASH)),
