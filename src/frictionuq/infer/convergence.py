@@ -30,9 +30,9 @@ def check(chain: np.ndarray, cfg, space=None) -> dict:
     coordinates): tau on the whole kept chain, R-hat and ESS on the draws the fit will report,
     i.e. thinned as sampler._result thins them (emcee's get_chain(thin=...) picks the steps
     thin - 1, 2 thin - 1, ...) and, given the `space`, as parameter values (SI, ratio parameters
-    multiplied out), so that the stopping rule is the summary's rule (outputs.summary_entry). Before 2026-12-01
-    it ran on the unthinned chain in u: a synthetic 267 N fit stopped at R-hat 1.0098 there and
-    reported 1.0105 for sigma0, "not converged"."""
+    multiplied out), so that the stopping rule is the summary's rule (outputs.summary_entry).
+    Before 2026-12-01 it ran on the unthinned chain in u: a synthetic 267 N fit stopped at R-hat
+    1.0098 there and reported 1.0105 for sigma0, "not converged"."""
     tau = autocorr_time(chain)
     thin = thinning(cfg, tau)
     kept = chain[thin - 1::thin]

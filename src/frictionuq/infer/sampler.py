@@ -135,9 +135,9 @@ class SamplerConfig:
             v, typ = getattr(self, f.name), str(f.type)
             if v is None and "None" in typ or typ.startswith("bool"):
                 continue
-            if typ.startswith("str"):
+            if f.name == "stored_run":
                 if v not in STORED_RUNS:
-                    raise InputError(f"sampler: {f.name} must be one of {', '.join(STORED_RUNS)}, "
+                    raise InputError(f"sampler: stored_run must be one of {', '.join(STORED_RUNS)}, "
                                      f"got {v!r}")
                 continue
             if typ.startswith("int"):
