@@ -72,6 +72,14 @@ def check_discover(tmp_path, device, effect, seed, refit, also=None, max_effects
         assert lv["log_prob_map"] >= best - 5.0, (lv["log_prob_map"], best)
     by = {(g["test"], g["model"]): g for g in doc["diagnostics"]}
     tag = f"with {' + '.join(doc['named_effects'])}"       # the model with every named effect
+    # the level's tests taken together (combine.py): one entry per model, every test either
+    # combined or excluded for its null's short blocks
+    ids = [t["id"] for t in ans["tests"]]
+    models = list(dict.fromkeys(g["model"] for g in doc["diagnostics"]))
+    assert [c["model"] for c in doc["combined_diagnostics"]] == (models if len(ids) >= 2 else [])
+    for c in doc["combined_diagnostics"]:
+        assert sorted(c["tests"] + c["excluded"]) == sorted(ids)
+        assert set(c["significant"]) <= set(c["views"])
     noise_effect = next((e for e in hidden if e in NOISE_EFFECTS), None)
     if noise_effect:
         # the force is not what it changes: the gap it closes is in the noise. Pooled over the
@@ -130,6 +138,6 @@ def check_discover(tmp_path, device, effect, seed, refit, also=None, max_effects
         page = render_discrepancy_page(tmp_path / "out")
         html = page.read_text()
         assert f"Named effect: {effect}" in html and "loops" in html and "RMSE at its MAP (N)" in html
-        assert "MAP gain on all units (nats)" in html
+        assert "MAP gain on all units (nats)" in html and "tests combined" in html
         assert re.search(r"the baseline.{1,6}s RMSE at its MAP \d", html)   # the table's caption
         assert html.count("data:image/png;base64") >= 2 * len(ans["tests"]) + len(ans["tests"])

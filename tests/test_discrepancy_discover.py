@@ -56,6 +56,9 @@ def test_cli_discover_on_a_clean_mfd_campaign(tmp_path, capsys):
     assert doc["alternatives"] == [] and doc["environment"]["numba_cpu"]
     html = (tmp_path / "out" / "report.html").read_text()
     assert "Named effect: none" in html and "frictionuq" in html and "seed 1" in html
+    # the level's tests taken together (combine.py): in the document and on the page
+    assert [c["model"] for c in doc["combined_diagnostics"]] == ["baseline"]
+    assert "tests combined" in html
 
 
 def test_discover_screens_a_noise_effect_on_records_that_keep_its_band(tmp_path, monkeypatch):

@@ -137,6 +137,23 @@ def _gap(level_tests, cfg, base_map: dict, named: list, named_map: dict, seed: i
     return out
 
 
+def _combined(level: str, gap: list[dict], log) -> list[dict]:
+    """The level's tests' diagnostics taken together (combine.py), per model, with 2+ tests."""
+    from .combine import combine
+    out = []
+    for tag in dict.fromkeys(g["model"] for g in gap):
+        gs = [g for g in gap if g["model"] == tag]
+        if len(gs) < 2:
+            continue
+        c = {"level": level, "model": tag,
+             **combine([g["diagnostics"] for g in gs], [g["test"] for g in gs])}
+        log(f"diagnostics {tag}, level {level}, its tests combined: significant structure in "
+            f"{', '.join(c['significant']) or 'none'}"
+            + (f" (not combined: {', '.join(c['excluded'])})" if c["excluded"] else ""))
+        out.append(c)
+    return out
+
+
 def _candidate_rows(ranked) -> list[dict]:
     return [{"effect": r["effect"], "elpd_gain": r["elpd_gain"], "elpd_gain_se": r["elpd_gain_se"],
              "rmse_before": r["rmse_baseline"], "rmse_after": r["rmse_map"],
@@ -269,10 +286,11 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
     elif named_all:
         doc["rmse_after"] = next(r for r in last["ranked"] if r["effect"] == last["named"])["rmse_map"]
     if diagnostics:
-        doc["diagnostics"] = []
+        doc["diagnostics"], doc["combined_diagnostics"] = [], []
         for s_, lv, fm in zip(specs, levels, final_maps):
-            doc["diagnostics"] += _gap(s_.tests, cfg, lv["models"]["baseline"]["map"], named_all,
-                                       fm, seed, out, log)
+            gap = _gap(s_.tests, cfg, lv["models"]["baseline"]["map"], named_all, fm, seed, out, log)
+            doc["diagnostics"] += gap
+            doc["combined_diagnostics"] += _combined(s_.id, gap, log)
     doc["seconds"] = time.perf_counter() - t0
     atomic.write_json(out / "discrepancy.json", jsonable(doc))
     return doc

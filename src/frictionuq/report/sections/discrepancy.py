@@ -78,6 +78,16 @@ def gap_blocks(folder, d: dict) -> list[dict]:
         out.append(B.html(table(["test", "model", "RMSE at its MAP (N)",
                                  "views with significant structure (Holm, 1 %)"],
                                 rows, caption="the gap before and after, per test")))
+    comb = d.get("combined_diagnostics", [])
+    rows = [(c["level"], c["model"], ", ".join(c["tests"]) or "-", ", ".join(c["excluded"]) or "-",
+             ", ".join(c["significant"]) or "none") for c in comb]
+    if rows:
+        out.append(B.html(table(
+            ["level", "model", "tests combined", "not combined (null blocks too short)",
+             f"views with significant structure (Holm, {100 * comb[0]['alpha']:g} %, tests combined)"],
+            rows, caption="the level's tests taken together: Fisher's combination of the tests' "
+                          "p-values per view, Holm over the views (a structure each test shows "
+                          "too weakly on its own)")))
     chat = sorted({g["test"] for g in diags if g["model"] == "baseline"
                    and any(v.startswith("chatter") for v in g["significant_views"])})
     if chat:
