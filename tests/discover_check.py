@@ -79,6 +79,9 @@ def check_discover(tmp_path, device, effect, seed, refit, also=None, max_effects
     assert [c["model"] for c in doc["combined_diagnostics"]] == (models if len(ids) >= 2 else [])
     for c in doc["combined_diagnostics"]:
         assert sorted(c["tests"] + c["excluded"]) == sorted(ids)
+        # Fisher's combination needs independent p-values: each test its own permutations
+        seeds = [by[(t, c["model"])]["diagnostics"]["seed"] for t in ids]
+        assert len(set(seeds)) == len(seeds), seeds
         assert set(c["significant"]) <= set(c["views"])
     noise_effect = next((e for e in hidden if e in NOISE_EFFECTS), None)
     if noise_effect:

@@ -16,7 +16,7 @@ permutation p-values,
 then Holm's step-down correction over the views combined, at the diagnostics' alpha. Under the
 null of every test (its residual a stationary short-memory process unrelated to the features)
 each permutation p-value is super-uniform (P(p <= a) <= a) and the tests' permutations are drawn
-independently, so p_combined is valid (conservative) when the records' residuals are independent
+independently (discover gives each test of a level its own permutation seed), so p_combined is valid (conservative) when the records' residuals are independent
 of each other: they are separate records, coupled only through the parameters fitted to all of
 them.
 
@@ -35,7 +35,7 @@ estimated correlation length (the drift itself), so a test with a strong drift c
 it then shows that drift on its own. The full-length MFD campaign with the hidden fade above
 (seed 11, the baseline's MAP): the 0.1 Hz test is left out (blocks 0.7 lengths); the 0.5 Hz
 test (3.5 lengths) and the Kobe replay (8.3) combined show the drift in the energy view, p
-0.0008 from 0.002 and 0.038 (Holm-adjusted below 1 %), which the replay alone does not; with the
+0.0007 from 0.002 and 0.035 (Holm-adjusted below 1 %), which the replay alone does not; with the
 fade modelled, no view of the three tests combined is significant (smallest p 0.137).
 """
 from __future__ import annotations
@@ -75,9 +75,11 @@ def reliable(d: dict) -> bool:
 
 def combine(diagnostics: list[dict], tests: list[str], alpha: float | None = None) -> dict:
     """The level's combined verdict from its tests' diagnostics (diagnose's outputs, in the order
-    of `tests`): {"tests", "method", "alpha", "family_size", "views": {view: {"tests",
-    "p_values", "p_combined", "p_adjusted", "significant"}}, "significant": [views]}. A view in
-    fewer than two tests is not combined; alpha defaults to the tests' own."""
+    of `tests`): {"tests" (combined), "excluded" (left out: reliable() fails), "method",
+    "alpha", "family_size", "views": {view: {"tests", "p_values", "p_combined", "p_adjusted",
+    "significant"}}, "significant": [views]}. A view in fewer than two tests is not combined;
+    alpha defaults to the tests' own. The p-values must come from independent permutations (a
+    seed per test)."""
     if len(diagnostics) != len(tests):
         raise ValueError("combine: one diagnostics entry per test")
     alpha = float(alpha if alpha is not None else diagnostics[0]["alpha"]) if diagnostics else 0.01

@@ -98,6 +98,10 @@ def _label(view: str, d: dict) -> str:
     return view
 
 
+#: the permutation seeds of a level's tests are seed, seed + this, seed + 2 x this, ...
+PERM_SEED_STRIDE = 7919
+
+
 def _gap(level_tests, cfg, base_map: dict, named: list, named_map: dict, seed: int,
          fig_dir: Path, log) -> list[dict]:
     """The gap before and after, per test of a level: residual diagnostics (diagnostics.diagnose)
@@ -111,12 +115,15 @@ def _gap(level_tests, cfg, base_map: dict, named: list, named_map: dict, seed: i
     forces = {tag: _model_forces(level_tests, cfg, eff, m) for tag, eff, m in models}
     out = []
     for tag, _, _ in models:
-        for rec, F, g in forces[tag]:
+        for j, (rec, F, g) in enumerate(forces[tag]):
             # with a noise effect (chatter) the residual in units of its noise model, which the
             # likelihood takes as stationary: what the effect leaves unexplained
             r = rec.y - F if g is None else (rec.y - F) / g
+            # each test its own permutations (seed + PERM_SEED_STRIDE j): the level's tests
+            # combined (combine.py) need independent p-values; both models of a test share them
             d = diagnose(rec.t, rec.x, r, force_model=F, eps=rec.eps, applied=rec.applied,
-                         seed=seed, bursts=rec.kind != "earthquake")   # chatter.py: why
+                         seed=seed + PERM_SEED_STRIDE * j,
+                         bursts=rec.kind != "earthquake")   # chatter.py: why
             d["scaled_by_noise_gain"] = g is not None
             name = f"residuals-{tag.replace(' ', '-')}-{rec.id}.png"
             title = f"{rec.id}: residuals, {tag}" + ("" if g is None else " (divided by the noise gain)")
