@@ -16,9 +16,9 @@ permutation p-values,
 then Holm's step-down correction over the views combined, at the diagnostics' alpha. Under the
 null of every test (its residual a stationary short-memory process unrelated to the features)
 each permutation p-value is super-uniform (P(p <= a) <= a) and the tests' permutations are drawn
-independently (discover gives each test of a level its own permutation seed), so p_combined is valid (conservative) when the records' residuals are independent
-of each other: they are separate records, coupled only through the parameters fitted to all of
-them.
+independently (discover gives each test of a level its own permutation seed), so p_combined is
+valid (conservative) when the records' residuals are independent of each other: they are
+separate records, coupled only through the parameters fitted to all of them.
 
 Which tests enter. A test's own null is only roughly calibrated when its blocks are capped at
 n / 20 samples and so hold few of the residual's correlation lengths (diagnostics.py,
@@ -44,7 +44,7 @@ import math
 
 from scipy import stats
 
-from .diagnostics import _holm as holm
+from .diagnostics import holm
 
 MIN_BLOCK_TAU = 3.0
 METHOD = ("Fisher's combination of the tests' permutation p-values (-2 sum ln p, chi-square "
@@ -82,7 +82,9 @@ def combine(diagnostics: list[dict], tests: list[str], alpha: float | None = Non
     seed per test)."""
     if len(diagnostics) != len(tests):
         raise ValueError("combine: one diagnostics entry per test")
-    alpha = float(alpha if alpha is not None else diagnostics[0]["alpha"]) if diagnostics else 0.01
+    if alpha is None:
+        alpha = diagnostics[0]["alpha"] if diagnostics else 0.01
+    alpha = float(alpha)
     keep = [reliable(d) for d in diagnostics]
     excluded = [t for t, k in zip(tests, keep) if not k]
     tests = [t for t, k in zip(tests, keep) if k]

@@ -229,7 +229,8 @@ def _trend_basis(f: np.ndarray, up: np.ndarray) -> np.ndarray:
     return Q[:, keep]
 
 
-def _holm(p: dict) -> dict:
+def holm(p: dict) -> dict:
+    """Holm's step-down adjusted p-values {name: p_adjusted} of {name: p} (also combine.py's)."""
     names = sorted(p, key=p.get)
     m, run, out = len(names), 0.0, {}
     for i, name in enumerate(names):
@@ -386,7 +387,7 @@ def diagnose(t, x, resid, spread=None, features=None, alpha: float = 0.01, n_per
                     "wavelength_band_m": [_f(1.0 / spec.k[-1]), _f(1.0 / spec.k[0])],
                     "critical_ratio": _f(np.quantile(null_max, 1.0 - alpha / n_family)),
                     "wavenumber_per_m": _fl(spec.k), "power_ratio": _fl(ratio)}
-    adj = _holm(pvals)
+    adj = holm(pvals)
     for name, v in list(out_views.items()) + ([("spectrum", spectrum)] if spectrum else []) + \
             ([("chatter", bursts)] if bursts else []):
         v["p_adjusted"], v["significant"] = _f(adj[name]), bool(adj[name] <= alpha)
