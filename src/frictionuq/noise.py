@@ -102,12 +102,19 @@ def since_reversal(x, eps: float = 0.0) -> np.ndarray:
     return since_reversal_from(x, d, x_r)
 
 
-def chatter_gain(s, a, s0, w) -> np.ndarray:
-    """The `chatter` noise effect's sd multiplier g(s) = sqrt(1 + a exp(-(s - s0)^2 / (2 w^2)))
-    for rows of parameters a, s0, w (W,) at travels s (N,): (W, N)."""
-    a, s0, w = (np.asarray(v, dtype=float).reshape(-1, 1) for v in (a, s0, w))
-    z = (np.asarray(s, dtype=float)[None, :] - s0) / w
-    return np.sqrt(1.0 + a * np.exp(-0.5 * z * z))
+def chatter_gain(s, a, s0, w, b=0.0) -> np.ndarray:
+    """The `chatter` noise effect's sd multiplier g(s) = sqrt(1 + a h(s)) for rows of
+    parameters a, s0, w, b (W,) at travels s (N,): (W, N). The window h is the bump
+    exp(-(s - s0)^2 / (2 w^2)) up to its centre s0 and b + (1 - b) times the bump after it:
+    with b = 0 a bump, with b > 0 a rise that keeps the fraction b of its peak until the next
+    reversal (the real ARTS chatter rises at the end of the take-up and stays up:
+    docs/model-choices.md, "chatter"). h is continuous with a continuous slope at s0."""
+    a, s0, w, b = (np.asarray(v, dtype=float).reshape(-1, 1) for v in (a, s0, w, b))
+    s = np.asarray(s, dtype=float)[None, :]
+    z = (s - s0) / w
+    bump = np.exp(-0.5 * z * z)
+    h = np.where(s > s0, b + (1.0 - b) * bump, bump)
+    return np.sqrt(1.0 + a * h)
 
 
 def count_reversals(x, eps) -> int:

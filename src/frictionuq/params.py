@@ -95,8 +95,9 @@ _EFFECT_PARAMS = [
 ]
 
 #: effects on the measurement noise, not on the force (the kernel never sees them): the
-#: likelihood scales the noise by g(s) = sqrt(1 + a_ch exp(-(s - s_ch)^2 / (2 w_ch^2))) at the
-#: travel s since the last reversal (infer.likelihood; docs/model-choices.md, "chatter")
+#: likelihood scales the noise by g(s) = sqrt(1 + a_ch h(s)) at the travel s since the last
+#: reversal, h the window exp(-(s - s_ch)^2 / (2 w_ch^2)) before its centre s_ch and b_ch + (1 -
+#: b_ch) times it after (noise.chatter_gain; docs/model-choices.md, "chatter")
 _NOISE_EFFECT_PARAMS = [
     Param("a_ch", "1", 0.0, 1e4, "extra measurement-noise variance at the centre of the chatter "
           "window, relative to the noise variance elsewhere (the variance there is 1 + a_ch times)",
@@ -105,6 +106,11 @@ _NOISE_EFFECT_PARAMS = [
           "noise_effect", "chatter", default=1e-2),
     Param("w_ch", "m", 1e-6, 10.0, "half-width (sd) of the chatter window, in travel",
           "noise_effect", "chatter", default=3e-3, log_scale=True),
+    # appended last, so the first three keep their places (b_ch = 0: the one-bump window the
+    # effect had before 2026-12-01)
+    Param("b_ch", "1", 0.0, 1.0, "fraction of the window's extra noise variance that stays after "
+          "its centre until the next reversal (0: a bump; 1: a step up)", "noise_effect",
+          "chatter", default=0.0),
 ]
 
 BASE_NAMES: tuple[str, ...] = tuple(p.name for p in _BASE)

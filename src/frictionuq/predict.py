@@ -125,9 +125,10 @@ def noise_gain(x, draws: Draws, eps: float) -> np.ndarray | None:
     if "chatter" not in draws.effects:
         return None
     from .noise import chatter_gain, since_reversal
-    a, s0, w = (np.broadcast_to(np.asarray(draws.params.get(n, P.PARAMS[n].default), float), (draws.size,))
-                for n in P.EFFECTS["chatter"])
-    return chatter_gain(since_reversal(np.asarray(x, float), float(eps)), a, s0, w)
+    # a parameter the draws lack (b_ch in a fit made before it existed) takes its default
+    q = [np.broadcast_to(np.asarray(draws.params.get(n, P.PARAMS[n].default), float), (draws.size,))
+         for n in P.EFFECTS["chatter"]]
+    return chatter_gain(since_reversal(np.asarray(x, float), float(eps)), *q)
 
 
 def add_noise(F: np.ndarray, draws: Draws, dt: float, rng, include_offset: bool = False,

@@ -24,7 +24,7 @@ import numpy as np
 from .. import atomic, published as pub
 from ..model import simulate
 from ..noise import ar1_from_normals, chatter_gain, since_reversal
-from ..params import NOISE_EFFECTS
+from ..params import EFFECTS, NOISE_EFFECTS, PARAMS
 from ..twins import earthquake_drive, harmonic_drive
 
 LEVEL = {"brfd": 133.0, "mfd": 1200.0}          # applied force (N) / pressure (psi)
@@ -92,11 +92,14 @@ _ALWAYS_DRAWN = {
 _DRAWN_WHEN_HIDDEN = {
     "speed_weakening": lambda u, amp, v_max, energy: {"beta_sw": float(u(0.2, 0.35)),
                                                       "v_sw": float(u(0.3, 0.6) * v_max)},
-    # a noise effect: the noise sd up to 2.2-4.6 times in a window after each reversal (the real
-    # ARTS loops: a_ch about 29 at 35 lb, s_ch 13 mm of a 25 mm amplitude, w_ch 3.3 mm)
+    # a noise effect: the noise sd up to 2.2-4.6 times in a window after each reversal, a
+    # fraction b_ch of the window's extra variance staying after its centre until the next
+    # reversal (the real ARTS loops at 35 lb, one-bump window: a_ch about 29, s_ch 13 mm of a 25
+    # mm amplitude, w_ch 3.3 mm; with the tail: b_ch 0.08-0.11 at a_ch 300-390)
     "chatter": lambda u, amp, v_max, energy: {"a_ch": float(u(4.0, 20.0)),
                                               "s_ch": float(u(0.3, 0.8) * amp),
-                                              "w_ch": float(u(0.08, 0.15) * amp)},
+                                              "w_ch": float(u(0.08, 0.15) * amp),
+                                              "b_ch": float(u(0.05, 0.3))},
 }
 
 
@@ -228,8 +231,8 @@ def hidden_campaign(out_dir, device: str, effect: str | None, seed: int,
                      applied=actual if "applied_tracking" in effects else None)
         noise = ar1_from_normals(rng.standard_normal(n), NOISE_PHI, sd)
         for e in noise_effects:      # chatter: more noise in a window after each reversal
-            q = effects[e]
-            noise = noise * chatter_gain(since_reversal(x), q["a_ch"], q["s_ch"], q["w_ch"])[0]
+            args = [effects[e].get(n, PARAMS[n].default) for n in EFFECTS[e]]
+            noise = noise * chatter_gain(since_reversal(x), *args)[0]
         if burst_rng is not None:
             noise = noise + stick_slip_bursts(t, x, p["d2"] + p["d3"], effects["chatter"], burst_rng)
         y = F + noise

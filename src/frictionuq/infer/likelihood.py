@@ -6,9 +6,10 @@ data = simulated force + force_offset + noise, with noise either independent Gau
 correlation noise_phi) or ARMA(1,1) (`arma`: AR(1) plus white noise, the record's MA
 coefficient noise_theta fixed at the MAP), per record, with sigma_noise and noise_phi integrated
 out (frictionuq.infer.noisemodel). With the `chatter` noise effect (not in the spec's library)
-the noise is g(s) times such a process, g(s) = sqrt(1 + a_ch exp(-(s - s_ch)^2 / (2 w_ch^2)))
-at the travel s since the last reversal: more noise in a window after each reversal, where the
-real ARTS loops carry stick-slip chatter; sigma_noise is then the noise's sd outside the window.
+the noise is g(s) times such a process, g(s) = sqrt(1 + a_ch h(s)) at the travel s since the
+last reversal, h = exp(-(s - s_ch)^2 / (2 w_ch^2)) before s_ch and b_ch + (1 - b_ch) times it
+after (noise.chatter_gain): more noise in a window after each reversal, where the real ARTS
+loops carry stick-slip chatter; sigma_noise is then the noise's sd before the window.
 Residuals of a friction model on a 100-1000 Hz record are strongly autocorrelated; the iid
 form then treats thousands of dependent samples as independent and makes posteriors far too
 narrow, which is why `ar1` is the default.

@@ -118,8 +118,8 @@ class Space:
             return vals[:, self.names.index("force_offset")]
         return np.full(vals.shape[0], self.fixed.get("force_offset", 0.0))
 
-    def chatter(self, theta) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-        """(a_ch, s_ch, w_ch) of each row (W,) when the fit has the `chatter` noise effect,
+    def chatter(self, theta) -> tuple[np.ndarray, ...] | None:
+        """(a_ch, s_ch, w_ch, b_ch) of each row (W,) when the fit has the `chatter` noise effect,
         else None (params: the noise effects)."""
         if "chatter" not in self.effects:
             return None
