@@ -12,7 +12,7 @@ import numpy as np
 from frictionuq.campaign import load_campaign
 from frictionuq.discrepancy import fits
 from frictionuq.discrepancy.hidden import hidden_campaign
-from frictionuq.params import BEYOND_SPEC, EFFECTS, NOISE_EFFECTS
+from frictionuq.params import BEYOND_SPEC, NOISE_EFFECTS
 
 
 def check_discover(tmp_path, device, effect, seed, refit, also=None, max_effects=1):
@@ -110,7 +110,7 @@ def check_discover(tmp_path, device, effect, seed, refit, also=None, max_effects
                     e = lp.residuals(th, rec)[0]
                     g = lp.noise_gain(th, j)
                     e = e / g[0] if scaled else e
-                    win = chatter_gain(since_reversal(rec.x, rec.eps), *(p[n] for n in EFFECTS["chatter"]))[0] > 2.0
+                    win = chatter_gain(since_reversal(rec.x, rec.eps), p["a_ch"], p["s_ch"], p["w_ch"])[0] > 2.0
                     inside.append(e[win] ** 2)
                     outside.append(e[~win] ** 2)
                 ratios[model + (" / g" if scaled else "")] = float(

@@ -28,7 +28,7 @@ from frictionuq.draws import Draws
 from frictionuq.infer import outputs
 from frictionuq.infer.fit import FitConfig, FitSpec, prepare
 from frictionuq.infer.likelihood import LogPosterior, prepare_record
-from frictionuq.infer.priors import Prior
+from frictionuq.infer.priors import TAIL_PRIOR, Prior
 from frictionuq.infer.sampler import SamplerConfig, sample
 from frictionuq.infer.space import Space
 from frictionuq.model import simulate
@@ -97,20 +97,20 @@ def test_the_force_and_the_kernel_vector_ignore_it():
         P.pack(TRUTH, {"chatter": {"a_ch": -1.0}})
 
 
-def test_the_tail_is_free_by_default_and_can_be_fixed():
-    """The default priors free b_ch (uniform on [0, 1]); `b_ch = 0` in the priors fixes the
-    one-bump window; a space without b_ch (the default 0) gives the same likelihood as b_ch = 0
-    free, and another b_ch another one."""
+def test_the_tail_is_opt_in():
+    """The default priors leave b_ch out (the one-bump window: b_ch = 0 in the likelihood);
+    TAIL_PRIOR frees it, uniform on [0, 1]; the default's likelihood is that of b_ch = 0 freed,
+    and another b_ch gives another one."""
     t, x = sine(cycles=2, per_cycle=100)
     y = simulate(t, x, TRUTH) + np.random.default_rng(1).normal(0, 300.0, t.size)
     test = NS(id="r", record=NS(t=t, x=x, force=y, applied=None), applied=267.0,
               kind="harmonic", frequency_hz=0.5)
     spaces = {}
-    for name, pri in (("tail", {}), ("default", {"b_ch": 0.0})):
+    for name, pri in (("tail", {"b_ch": dict(TAIL_PRIOR)}), ("default", {})):
         cfg = FitConfig(samples_per_cycle=100, effects=("chatter",), priors=pri)
         spaces[name] = prepare(FitSpec("r", [test], 267.0, cfg))
     assert "b_ch" in spaces["tail"][2].names and spaces["tail"][2].priors["b_ch"].box() == (0.0, 1.0)
-    assert "b_ch" not in spaces["default"][2].names and spaces["default"][2].fixed["b_ch"] == 0.0
+    assert "b_ch" not in spaces["default"][2].names and "b_ch" not in spaces["default"][2].fixed
     sd = spaces["default"][2]
     vals = {n: float(v) for n, v in zip(sd.names, sd.to_values(sd.to_theta(
         {n: 0.5 * (sd.priors[n].lower + sd.priors[n].upper) for n in sd.names})))}
@@ -226,7 +226,8 @@ SAMPLER = SamplerConfig(chunk=2000, min_steps=2000, max_steps=2000, burn_rounds=
 @pytest.fixture(scope="module")
 def chatter_fit():
     """A BRFD 267 N sine, 4 cycles at 200 samples per cycle, with AR(1) noise (phi 0.8, sd 1 %
-    of Fc) times g(s) at (A_CH, S_CH, W_CH, B_CH); fitted with the effect (default priors)."""
+    of Fc) times g(s) at (A_CH, S_CH, W_CH, B_CH); fitted with the effect (default priors, the
+    window's tail b_ch freed by TAIL_PRIOR)."""
     t, x = sine()
     fc = 0.5 * (TRUTH["fc_fwd"] + TRUTH["fc_bwd"])
     rng = np.random.default_rng(5)
@@ -234,7 +235,8 @@ def chatter_fit():
     y = simulate(t, x, TRUTH) + g * ar1_from_normals(rng.standard_normal(t.size), 0.8, 0.01 * fc)
     test = NS(id="chatter-267N", record=NS(t=t, x=x, force=y, applied=None), applied=267.0,
               kind="harmonic", frequency_hz=0.5)
-    cfg = FitConfig(seed=3, samples_per_cycle=200, effects=("chatter",), sampler=SAMPLER)
+    cfg = FitConfig(seed=3, samples_per_cycle=200, effects=("chatter",), sampler=SAMPLER,
+                    priors={"b_ch": dict(TAIL_PRIOR)})
     records, scales, space, logpost = prepare(FitSpec(test.id, [test], 267.0, cfg))
     assert records[0].q == 1
     with warnings.catch_warnings():

@@ -226,3 +226,25 @@ def test_the_samplers_stopping_rule_reads_the_draws_the_summary_reports(tmp_path
     assert last["ess_min"] == pytest.approx(
         min(min(p["ess_bulk"], p["ess_tail"]) for p in free.values()), rel=1e-9)
     assert entry["sampler_criteria_met"] and entry["converged"], entry["not_converged_parameters"]
+
+
+def test_an_effects_prior_override_applies_only_with_the_effect():
+    """build_space: an override of an effect's parameter (fixed or a distribution) reaches the
+    space only when that effect is in the model; without it the parameter keeps its neutral
+    value in the kernel vector and no sampling dimension is added (a workflow's priors serve
+    the discrepancy screening's baseline and every candidate). A base parameter's override
+    applies as before, and a bad override is still refused. Deterministic."""
+    from frictionuq import params as P
+    from frictionuq.errors import InputError
+    from frictionuq.infer.fit import prepare
+    test, _ = synthetic_test()
+    over = {"p2": 2.0, "b_ch": {"dist": "uniform", "lower": 0.0, "upper": 1.0}, "sigma2": 900.0}
+    space = {eff: prepare(FitSpec("s", [test], 267.0, FitConfig(effects=eff, priors=over)))[2]
+             for eff in ((), ("stage2_nonlinear", "chatter"))}
+    plain, both = space[()], space[("stage2_nonlinear", "chatter")]
+    assert "p2" not in plain.fixed and "b_ch" not in plain.names and plain.fixed["sigma2"] == 900.0
+    assert plain.kernel_matrix(plain.to_theta({n: plain.priors[n].lower * 1.01 + 1e-9 for n in plain.names})
+                               )[0, P.INDEX["p2"]] == 1.0            # neutral: no stage-2 curve
+    assert both.fixed["p2"] == 2.0 and "b_ch" in both.names and both.fixed["sigma2"] == 900.0
+    with pytest.raises(InputError, match="p2"):
+        prepare(FitSpec("s", [test], 267.0, FitConfig(priors={"p2": -1.0})))

@@ -13,7 +13,9 @@ the campaign's own applied unit for `applied` (e.g. lb).
                 simulate_at = "raw" | "kept" (decimated records: model force filtered like the
                 data, or simulated on the decimated displacement), eps = "auto" | metres,
                 drive_lowpass = MULT (off when absent; infer.drivefilter), n_predictive = 200, [fit.priors] (spec names: a number
-                fixes the parameter, a table {dist, lower, upper, mu, sd} sets its prior),
+                fixes the parameter, a table {dist, lower, upper, mu, sd} sets its prior; an
+                effect's parameter only where that effect is in the model, e.g. chatter's
+                opt-in tail b_ch = {dist = "uniform", lower = 0, upper = 1}),
                 [fit.sampler] (frictionuq.infer.sampler.SamplerConfig fields)
     [law]       enabled = true, family = "auto" | "linear" | "threshold" | "saturating"
     [predict]   n_draws = 400, validate = [test ids of the campaign, predicted and scored],

@@ -92,14 +92,12 @@ _ALWAYS_DRAWN = {
 _DRAWN_WHEN_HIDDEN = {
     "speed_weakening": lambda u, amp, v_max, energy: {"beta_sw": float(u(0.2, 0.35)),
                                                       "v_sw": float(u(0.3, 0.6) * v_max)},
-    # a noise effect: the noise sd up to 2.2-4.6 times in a window after each reversal, a
-    # fraction b_ch of the window's extra variance staying after its centre until the next
-    # reversal (the real ARTS loops at 35 lb, one-bump window: a_ch about 29, s_ch 13 mm of a 25
-    # mm amplitude, w_ch 3.3 mm; with the tail: b_ch 0.08-0.11 at a_ch 300-390)
+    # a noise effect: the noise sd up to 2.2-4.6 times in a window after each reversal (the real
+    # ARTS loops: a_ch about 29 at 35 lb, s_ch 13 mm of a 25 mm amplitude, w_ch 3.3 mm); the
+    # window's tail b_ch at its default 0, as the default fit has it
     "chatter": lambda u, amp, v_max, energy: {"a_ch": float(u(4.0, 20.0)),
                                               "s_ch": float(u(0.3, 0.8) * amp),
-                                              "w_ch": float(u(0.08, 0.15) * amp),
-                                              "b_ch": float(u(0.05, 0.3))},
+                                              "w_ch": float(u(0.08, 0.15) * amp)},
 }
 
 

@@ -143,10 +143,19 @@ def _check_noise_overrides(overrides: dict, where: str) -> None:
 
 
 def build_space(spec: FitSpec, scales) -> Space:
+    """The fit's sampling space: default priors, then the config's overrides. An override of an
+    effect's parameter applies only when that effect is in the model (a workflow's priors serve
+    its baseline and every candidate of the discrepancy screening alike; applied without the
+    effect, a fixed p2 = 2 would have put a stage-2 curve into the baseline and a prior on b_ch
+    an unused dimension into the sampler); the override is still validated."""
     c = spec.config
     _check_noise_overrides(dict(c.priors or {}), f"fit {spec.id} priors")
     pri = default_priors(scales, c.model, c.effects, c.likelihood)
     pri, fixed = apply_overrides(pri, c.priors, source=f"fit {spec.id} priors")
+    off = {n for n in list(pri) + list(fixed)
+           if P.PARAMS[n].effect is not None and P.PARAMS[n].effect not in c.effects}
+    pri = {n: p for n, p in pri.items() if n not in off}
+    fixed = {n: v for n, v in fixed.items() if n not in off}
     if c.model == "lugre":
         for n in ("k2", "d2", "k3", "d3", "w"):
             pri.pop(n, None)

@@ -158,6 +158,10 @@ def effect_priors(effect: str, s: RecordScales) -> dict[str, Prior]:
     return {p.name: p for p in EFFECT_PRIORS[effect](s)}
 
 
+#: the override that frees chatter's tail b_ch (opt-in): FitConfig(priors={"b_ch": TAIL_PRIOR}),
+#: or `b_ch = {dist = "uniform", lower = 0, upper = 1}` in a workflow's [fit.priors]
+TAIL_PRIOR = {"dist": "uniform", "lower": 0.0, "upper": 1.0}
+
 EFFECT_PRIORS = {
     "stage2_nonlinear": lambda s: [_lu("p2", 0.25, 4.0)],
     "thermal_fade": lambda s: [_u("kappa", 0.0, 0.6),
@@ -177,11 +181,11 @@ EFFECT_PRIORS = {
     "speed_weakening": lambda s: [_u("beta_sw", 0.0, 0.6),
                                   _lu("v_sw", 0.1 * max(s.v_max, 1e-9), 3.0 * max(s.v_max, 1e-9))],
     # a noise effect: the noise variance up to 1 + 400 times (sd 20 times) in a window along the
-    # half-cycle (travel since the reversal 0 to 2 amplitudes), 0.02-0.5 amplitude wide, any
-    # fraction of it kept after the window's centre (b_ch; fix b_ch = 0 for the one-bump window
-    # of before 2026-12-01: docs/model-choices.md, "chatter")
+    # half-cycle (travel since the reversal 0 to 2 amplitudes), 0.02-0.5 amplitude wide. Its
+    # tail b_ch stays at 0 (the one-bump window) unless a prior override frees it (TAIL_PRIOR;
+    # docs/model-choices.md, "chatter", for what it buys on the real records and what it costs)
     "chatter": lambda s: [_u("a_ch", 0.0, 400.0), _u("s_ch", 0.0, 2.0 * s.amp),
-                          _lu("w_ch", 0.02 * s.amp, 0.5 * s.amp), _u("b_ch", 0.0, 1.0)],
+                          _lu("w_ch", 0.02 * s.amp, 0.5 * s.amp)],
 }
 
 
