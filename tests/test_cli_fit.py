@@ -11,7 +11,7 @@ TWIN = str(Path(__file__).resolve().parents[1] / "data" / "brfd-twin")
 
 @pytest.mark.parametrize("extra,fragment", [
     (["--effect", "hump"], "unknown effect 'hump'"),
-    (["--test", "no-such-test"], "no test matches"),
+    (["--test", "no-such-test"], "no test 'no-such-test'; its tests: h-35N-0.05Hz, "),
     (["--jobs", "0"], "jobs must be an integer >= 1, got 0"),
     (["--effect", "applied_tracking", "--test", "h-267N-0.5Hz", "--model", "lugre", "--effect", "stage2_nonlinear"],
      "stage2_nonlinear"),

@@ -289,7 +289,8 @@ def test_a_levels_fits_in_two_processes_are_the_serial_ones():
     (["--jobs", "0"], "jobs must be an integer >= 1, got 0"),
     (["--test", "no-such-test"], "unknown test id(s) no-such-test"),
     (["--model", "maxwell"], "unknown model 'maxwell'"),
-    (["--model", "lugre", "--kind", "earthquake", "--test", "h-267N-0.5Hz"], "no test matches"),
+    (["--model", "lugre", "--kind", "earthquake", "--test", "h-267N-0.5Hz"],
+     "no test of kind earthquake among the tests selected; its tests: "),
 ])
 def test_compare_refuses(tmp_path, capsys, extra, fragment):
     out = tmp_path / "out"

@@ -243,7 +243,8 @@ def test_bad_input_exit_2_one_line_nothing_written(fit_dir, tmp_path, capsys, ca
     elif case == "not-fit-dir":
         fdir, frag = str(tmp_path), "not a fit output folder"
     elif case == "no-level-no-law":
-        applied, frag = "0.1", "force-dependence law"
+        # in the user's unit, SI beside it
+        applied, frag = "0.1", "applied force 0.1 kN (100 N) (fitted: 0.267 kN (267 N)) and no usable force-dependence law"
     elif case == "applied-text":
         applied, frag = "heavy", "not a number"
     else:

@@ -70,6 +70,21 @@ def _take(posts: list[FitPosterior], n: int, rng) -> dict:
     return out
 
 
+def _shown(values_si, summary: dict) -> str:
+    """Applied forces (SI) as the user gave them: in the campaign's unit with the SI value beside
+    it ("50 lb (222.4 N)"), or in SI alone when the campaign's unit is SI or unknown."""
+    from .units import from_si, si_unit_of_applied
+    unit = (summary.get("units") or {}).get("applied")
+    try:
+        si = si_unit_of_applied(unit)
+        conv = [from_si(float(v), "applied", unit) for v in values_si]
+    except (ValueError, TypeError):
+        return ", ".join(f"{float(v):g} (SI)" for v in values_si) or "none"
+    if unit == si:
+        return ", ".join(f"{float(v):g} {si}" for v in values_si) or "none"
+    return ", ".join(f"{c:g} {unit} ({float(v):.4g} {si})" for c, v in zip(conv, values_si)) or "none"
+
+
 def choose_draws(fit_dir, applied_si: float, n: int, rng, summary: dict | None = None) -> Draws:
     """n parameter draws at applied force `applied_si` (SI): the posterior of the fit(s) at that
     level, else the folder's force-dependence law (module docstring)."""
@@ -91,16 +106,16 @@ def choose_draws(fit_dir, applied_si: float, n: int, rng, summary: dict | None =
         return Draws(params, posts[0].model, posts[0].effects, d.get("force_offset", np.zeros(n)),
                      d["_sigma"], d["_phi"], d["_rate"], src, ids, d["_theta"])
     levels = fitted_levels(summary)
-    lv = ", ".join(f"{v:g}" for v in levels) or "none"
+    lv, shown = _shown(levels, summary), _shown([a], summary)
     try:
         from .infer.law import draws_at
     except ImportError:
-        raise InputError(f"{fit_dir}: applied force {a:g} (SI) is not a fitted level (fitted: {lv}) "
+        raise InputError(f"{fit_dir}: applied force {shown} is not a fitted level (fitted: {lv}) "
                          "and no force-dependence law is available in this version") from None
     try:
         params, model, effects = draws_at(fit_dir, a, n, rng)
     except InputError as e:
-        raise InputError(f"no fitted level at applied force {a:g} (SI) (fitted: {lv}) and no usable "
+        raise InputError(f"no fitted level at applied force {shown} (fitted: {lv}) and no usable "
                          f"force-dependence law in {fit_dir}: {e}") from None
     if not levels:
         raise InputError(f"{fit_dir}: no fit at a single applied force to take the noise from")

@@ -113,8 +113,12 @@ def plan(campaign, by: str = "applied", config: FitConfig | None = None) -> list
              if (config.kinds is None or t.kind in config.kinds)
              and (config.tests is None or t.id in config.tests)]
     if not tests:
-        raise InputError(f"campaign {campaign.name!r}: no test matches the selection "
-                         f"(kinds={config.kinds}, tests={config.tests})")
+        unknown = [i for i in (config.tests or ()) if i not in {t.id for t in campaign.tests}]
+        what = (f"no test {', '.join(map(repr, unknown))}" if unknown else
+                f"no test of kind {', '.join(config.kinds or ())} among the tests selected")
+        ids = [t.id for t in campaign.tests]
+        listed = ", ".join(ids[:20]) + (f", ... ({len(ids)} in all)" if len(ids) > 20 else "")
+        raise InputError(f"campaign {campaign.name!r}: {what}; its tests: {listed}")
     if by == "test":
         return [FitSpec(t.id, [t], t.applied, config) for t in tests]
     if by != "applied":
