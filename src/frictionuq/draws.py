@@ -77,12 +77,13 @@ def _shown(values_si, summary: dict) -> str:
     unit = (summary.get("units") or {}).get("applied")
     try:
         si = si_unit_of_applied(unit)
-        conv = [from_si(float(v), "applied", unit) for v in values_si]
     except (ValueError, TypeError):
         return ", ".join(f"{float(v):g} (SI)" for v in values_si) or "none"
-    if unit == si:
-        return ", ".join(f"{float(v):g} {si}" for v in values_si) or "none"
-    return ", ".join(f"{c:g} {unit} ({float(v):.4g} {si})" for c, v in zip(conv, values_si)) or "none"
+
+    def one(v: float) -> str:
+        return f"{v:g} {si}" if unit == si else \
+            f"{from_si(v, 'applied', unit):g} {unit} ({v:.4g} {si})"
+    return ", ".join(one(float(v)) for v in values_si) or "none"
 
 
 def choose_draws(fit_dir, applied_si: float, n: int, rng, summary: dict | None = None) -> Draws:

@@ -61,9 +61,8 @@ def _p_values(d: dict) -> dict[str, float]:
 
 
 def fisher(p: list[float]) -> float:
-    """Fisher's combined p-value of independent p-values."""
-    x = -2.0 * sum(math.log(max(v, 1e-300)) for v in p)
-    return float(stats.chi2.sf(x, 2 * len(p)))
+    """Fisher's combined p-value of independent p-values (scipy's combine_pvalues)."""
+    return float(stats.combine_pvalues([max(v, 1e-300) for v in p], method="fisher").pvalue)
 
 
 def reliable(d: dict) -> bool:
