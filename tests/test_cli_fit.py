@@ -1,5 +1,6 @@
 """`frictionuq fit`: bad requests are refused before any sampling, with one line and exit 2.
 (The sampling itself is covered by tests/test_infer_fit.py.)"""
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -12,6 +13,7 @@ TWIN = str(Path(__file__).resolve().parents[1] / "data" / "brfd-twin")
 @pytest.mark.parametrize("extra,fragment", [
     (["--effect", "hump"], "unknown effect 'hump'"),
     (["--test", "no-such-test"], "no test 'no-such-test'; its tests: h-35N-0.05Hz, "),
+    (["--test", "h-35N-0.05Hz", "--test", "h-35N-0.5hz"], "no test 'h-35N-0.5hz'; its tests: "),
     (["--jobs", "0"], "jobs must be an integer >= 1, got 0"),
     (["--effect", "applied_tracking", "--test", "h-267N-0.5Hz", "--model", "lugre", "--effect", "stage2_nonlinear"],
      "stage2_nonlinear"),
@@ -54,3 +56,100 @@ def test_stored_run_option_reaches_the_sampler_config(tmp_path, monkeypatch, com
         with pytest.raises(Stop):
             main([command, TWIN, "--out", str(tmp_path / "out"), "--max-steps", "7"] + extra)
         assert seen and all(s.stored_run == want and s.max_steps == 7 for s in seen), seen
+
+
+@pytest.mark.parametrize("text, want", [
+    ("k2=1e5", ("k2", 1e5)),
+    ("b_ch=uniform:0:1", ("b_ch", {"dist": "uniform", "lower": 0.0, "upper": 1.0})),
+    (" v_s = loguniform:1e-4:0.01", ("v_s", {"dist": "loguniform", "lower": 1e-4, "upper": 0.01})),
+    ("force_offset=normal:0:5", ("force_offset", {"dist": "normal", "mu": 0.0, "sd": 5.0})),
+    ("fc_fwd=normal:300:30:100:900",
+     ("fc_fwd", {"dist": "normal", "mu": 300.0, "sd": 30.0, "lower": 100.0, "upper": 900.0})),
+])
+def test_prior_option_syntax(text, want):
+    from frictionuq.infer.priors import parse_prior_option
+    assert parse_prior_option(text) == want
+
+
+@pytest.mark.parametrize("extra, fragment", [
+    (["--prior", "k2"], "--prior 'k2': no NAME="),
+    (["--prior", "zz=1"], "unknown parameter 'zz'; the spec's names are fc_fwd, "),
+    (["--prior", "k2=beta:1:2"], "unknown dist 'beta'"),
+    (["--prior", "k2=uniform:1"], "uniform takes 2 numbers, got 1"),
+    (["--prior", "k2=uniform:a:2"], "not a number"),
+    (["--prior", "b_ch=0.5", "--prior", "b_ch=uniform:0:1"], "b_ch is given twice"),
+    (["--prior", "k2=uniform:5:1"], "prior of 'k2': need 0 <= lower < upper"),
+    (["--prior", "p2=-1"], "p2"),                      # an effect's: checked without the effect too
+    (["--prior", "fs_fwd=normal:100:10"], "relative to fc_fwd"),
+    (["--prior", "noise_phi=uniform:0:0.5"], "noise_phi is integrated out"),
+])
+@pytest.mark.parametrize("command", ["fit", "discover", "compare"])
+def test_bad_prior_options_are_refused_before_any_file(tmp_path, capsys, command, extra, fragment):
+    """One line, exit 2, and no output folder (every fit's priors are checked before the first
+    fit, and before a fit's folder is made)."""
+    out = tmp_path / "out"
+    code = main([command, TWIN, "--out", str(out), "--test", "h-35N-0.05Hz", "--test",
+                 "h-35N-0.5Hz", "--test", "h-53N-0.05Hz", "--test", "h-53N-0.5Hz"] + extra)
+    err = capsys.readouterr().err.splitlines()
+    assert code == 2, err
+    assert len([ln for ln in err if ln.startswith("frictionuq: error:")]) == 1, err
+    assert fragment in err[-1] and "Traceback" not in "\n".join(err), err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("command, target", [
+    ("fit", "frictionuq.infer.fit.fit_campaign"),
+    ("discover", "frictionuq.discrepancy.discover.discover"),
+    ("compare", "frictionuq.infer.compare.compare_campaign"),
+])
+def test_prior_options_reach_the_fit_config_and_its_space(tmp_path, monkeypatch, command, target):
+    """--prior reaches FitConfig.priors of fit and discover (the library call is stubbed), and
+    that config's space fixes k2, samples b_ch only with chatter and bounds sigma2 as given."""
+    import importlib
+
+    from frictionuq.campaign import load_campaign
+    from frictionuq.infer.fit import build_space, plan
+    from frictionuq.infer.priors import record_scales
+
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def stub(*args, **kw):
+        for a in list(args) + list(kw.values()):
+            seen.extend([a] if hasattr(a, "priors") else
+                        [c for c in a.values() if hasattr(c, "priors")] if isinstance(a, dict) else [])
+        raise Stop
+    mod, name = target.rsplit(".", 1)
+    monkeypatch.setattr(importlib.import_module(mod), name, stub)
+    with pytest.raises(Stop):
+        main([command, TWIN, "--out", str(tmp_path / "o"), "--prior", "k2=2e5", "--prior",
+              "b_ch=uniform:0:1", "--prior", "sigma2=loguniform:10:1000"])
+    cfg = seen[0]
+    assert len(seen) == (2 if command == "compare" else 1)     # compare: three_stage and lugre
+    assert all(c.priors == cfg.priors for c in seen) and cfg.priors == {"k2": 2e5, "b_ch": {"dist": "uniform", "lower": 0.0, "upper": 1.0},
+                          "sigma2": {"dist": "loguniform", "lower": 10.0, "upper": 1000.0}}
+    camp = load_campaign(TWIN)
+    for effects in ((), ("chatter",)):
+        spec = plan(camp, "applied", replace(cfg, effects=effects))[0]
+        sp = build_space(spec, record_scales([t.record for t in spec.tests]))
+        assert sp.fixed == {"k2": 2e5} and "k2" not in sp.names
+        assert ("b_ch" in sp.names) == bool(effects)
+        assert (sp.priors["sigma2"].lower, sp.priors["sigma2"].upper) == (10.0, 1000.0)
+    lugre = plan(camp, "applied", replace(cfg, model="lugre"))[0]
+    sp = build_space(lugre, record_scales([t.record for t in lugre.tests]))
+    assert "k2" not in sp.fixed and "k2" not in sp.names    # no backlash, no k2 override
+
+
+def test_a_relative_default_needs_both_bounds_to_be_overridden():
+    """fs_fwd's default bounds are of fs_fwd/fc_fwd: an override giving both bounds is in N (the
+    ratio dropped); one that keeps a default bound is refused (it would have read 0.9-1.35 N)."""
+    from frictionuq.errors import InputError
+    from frictionuq.infer.priors import Prior, apply_overrides
+    base = {"fs_fwd": Prior("fs_fwd", "loguniform", 0.9, 1.35, ratio_of="fc_fwd")}
+    pri, _ = apply_overrides(base, {"fs_fwd": {"dist": "uniform", "lower": 100.0, "upper": 400.0}})
+    assert pri["fs_fwd"] == Prior("fs_fwd", "uniform", 100.0, 400.0)
+    for partial in ({"dist": "normal", "mu": 200.0, "sd": 20.0}, {"upper": 400.0}):
+        with pytest.raises(InputError, match="relative to fc_fwd"):
+            apply_overrides(base, {"fs_fwd": partial})

@@ -112,8 +112,9 @@ def plan(campaign, by: str = "applied", config: FitConfig | None = None) -> list
     tests = [t for t in campaign.tests
              if (config.kinds is None or t.kind in config.kinds)
              and (config.tests is None or t.id in config.tests)]
-    if not tests:
-        unknown = [i for i in (config.tests or ()) if i not in {t.id for t in campaign.tests}]
+    # any unknown id is refused, not only when nothing matches: a typo would drop a test
+    unknown = [i for i in (config.tests or ()) if i not in {t.id for t in campaign.tests}]
+    if not tests or unknown:
         what = (f"no test {', '.join(map(repr, unknown))}" if unknown else
                 f"no test of kind {', '.join(config.kinds or ())} among the tests selected")
         ids = [t.id for t in campaign.tests]
@@ -160,9 +161,10 @@ def build_space(spec: FitSpec, scales) -> Space:
            if P.PARAMS[n].effect is not None and P.PARAMS[n].effect not in c.effects}
     pri = {n: p for n, p in pri.items() if n not in off}
     fixed = {n: v for n, v in fixed.items() if n not in off}
-    if c.model == "lugre":
+    if c.model == "lugre":          # no backlash: its parameters' overrides do not apply
         for n in ("k2", "d2", "k3", "d3", "w"):
             pri.pop(n, None)
+            fixed.pop(n, None)
     return Space(c.model, tuple(c.effects), c.likelihood, pri, fixed)
 
 
@@ -195,9 +197,9 @@ def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True
     from . import outputs
     log = log or (lambda m: None)
     t0 = time.perf_counter()
+    records, scales, space, logpost = prepare(spec)     # bad config: refused before any file
     fdir = Path(out_dir) / spec.id
     fdir.mkdir(parents=True, exist_ok=True)
-    records, scales, space, logpost = prepare(spec)
     theta0 = None
     if start is not None:
         missing = [n for n in space.names if n not in start]
@@ -262,6 +264,8 @@ def fit_campaign(campaign_path, out_dir, by: str = "applied", config: FitConfig 
     jobs = Workers(jobs).jobs               # refused here, before any work, if not an int >= 1
     camp = load_campaign(campaign_path)
     specs = plan(camp, by, config)
+    for s in specs:               # every fit's priors checked before the first fit starts
+        build_space(s, record_scales([t.record for t in s.tests]))
     jobs = min(jobs, len(specs)) if specs else 1
     if jobs == 1:
         fits = [run_fit(s, out_dir, camp.name, resume, log) for s in specs]

@@ -15,8 +15,10 @@ log-uniform, i.e. uniform in the log space they are sampled in; the others are u
 
 The static friction forces have priors relative to the kinetic ones (fs/fc), see Space.RATIO_OF.
 
-Overrides (per campaign or workflow): {name: number} fixes a parameter; {name: {"dist":
-"uniform"|"loguniform"|"normal", "lower":..., "upper":..., "mu":..., "sd":...}} replaces its prior.
+Overrides (a workflow's [fit.priors], the CLI's --prior, FitConfig.priors): {name: number} fixes
+a parameter; {name: {"dist": "uniform"|"loguniform"|"normal", "lower":..., "upper":..., "mu":...,
+"sd":...}} replaces its prior (SI; keys left out keep the default's, except where the default is
+relative, fs/fc, which needs both bounds).
 """
 from __future__ import annotations
 
@@ -212,6 +214,12 @@ def apply_overrides(priors: Mapping[str, Prior], overrides: Mapping | None, sour
             raise InputError(f"{source}: prior of {name!r} has unknown keys {sorted(unknown)}; "
                              "allowed: dist, lower, upper, mu, sd")
         base = out.get(name) or Prior(name, "uniform", P.PARAMS[name].lower, P.PARAMS[name].upper)
+        if base.ratio_of and not {"lower", "upper"} <= set(spec):
+            # the default's bounds are of the ratio to ratio_of: kept, they would read as newtons
+            raise InputError(f"{source}: prior of {name!r}: its default is relative to "
+                             f"{base.ratio_of} ({name}/{base.ratio_of} in [{base.lower:g}, "
+                             f"{base.upper:g}]); an override must give both lower and upper "
+                             f"({P.PARAMS[name].unit})")
         # an override gives absolute bounds (SI), even where the default is relative
         new = replace(base, ratio_of=None, **{k: (float(v) if k != "dist" else v) for k, v in spec.items()})
         if new.dist not in DISTS:
@@ -226,3 +234,46 @@ def apply_overrides(priors: Mapping[str, Prior], overrides: Mapping | None, sour
             raise InputError(f"{source}: prior of {name!r}: sd must be > 0")
         out[name] = new
     return out, fixed
+
+
+def parse_prior_option(text: str) -> tuple[str, float | dict]:
+    """One command-line prior, `NAME=VALUE` (fixes the parameter), `NAME=uniform:LOWER:UPPER`,
+    `NAME=loguniform:LOWER:UPPER` or `NAME=normal:MU:SD[:LOWER:UPPER]` (SI units), as the
+    (name, override) pair apply_overrides takes; the values are checked there."""
+    def bad(why):
+        return InputError(f"--prior {text!r}: {why}; expected NAME=VALUE (fixed) or NAME=uniform:"
+                          "LOWER:UPPER, NAME=loguniform:LOWER:UPPER, NAME=normal:MU:SD[:LOWER:UPPER] (SI)")
+    name, sep, rhs = text.partition("=")
+    name, rhs = name.strip(), rhs.strip()
+    if not sep or not name or not rhs:
+        raise bad("no NAME=")
+    if name not in P.PARAMS:
+        raise InputError(f"--prior {text!r}: unknown parameter {name!r}; the spec's names are "
+                         f"{', '.join(P.PARAMS)}")
+    dist, *nums = rhs.split(":")
+    try:
+        vals = [float(v) for v in (nums if nums else [dist])]
+    except ValueError:
+        raise bad("not a number") from None
+    if not nums:
+        return name, vals[0]
+    keys = {"uniform": [("lower", "upper")], "loguniform": [("lower", "upper")],
+            "normal": [("mu", "sd"), ("mu", "sd", "lower", "upper")]}.get(dist)
+    if keys is None:
+        raise bad(f"unknown dist {dist!r}")
+    ks = next((k for k in keys if len(k) == len(vals)), None)
+    if ks is None:
+        raise bad(f"{dist} takes {' or '.join(str(len(k)) for k in keys)} numbers, got {len(vals)}")
+    return name, {"dist": dist, **dict(zip(ks, vals))}
+
+
+def prior_options(texts) -> dict:
+    """{name: override} of repeated --prior options; a name given twice is refused."""
+    out: dict = {}
+    for t in texts or ():
+        name, spec = parse_prior_option(t)
+        if name in out:
+            raise InputError(f"--prior {t!r}: {name} is given twice")
+        out[name] = spec
+    return out
+

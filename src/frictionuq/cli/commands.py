@@ -1,0 +1,203 @@
+"""The commands: each calls one library function and prints what it wrote (units shown)."""
+from __future__ import annotations
+
+import sys
+
+def _cmd_ingest(a):
+    from ..ingest import ingest
+    m = ingest(a.campaign, a.out)
+    print(f"ingested {len(m['tests'])} tests of campaign {m['name']!r} into {a.out} (SI units)")
+
+
+def _cmd_simulate(a):
+    from ..simulate_io import simulate_files
+    n = simulate_files(a.params, a.input, a.out, model=a.model, eps=a.eps)
+    print(f"wrote {a.out}: {n} samples (time s, displacement m, force N)")
+
+
+def _cmd_twin(a):
+    from ..twins import write_twin
+    m = write_twin(a.device, a.out, seed=a.seed)
+    print(f"wrote the {a.device.upper()} twin campaign to {a.out}: {len(m['tests'])} tests, seed {a.seed}")
+
+
+def _cmd_fit(a):
+    from ..infer.fit import FitConfig, fit_campaign
+    from ..infer.priors import prior_options
+    samp = _sampler_config(a)
+    cfg = FitConfig(model=a.model, effects=tuple(a.effect or ()), likelihood=a.likelihood,
+                    seed=a.seed, priors=prior_options(a.prior), sampler=samp, tests=tuple(a.test) if a.test else None,
+                    kinds=tuple(a.kind) if a.kind else None, simulate_at=a.simulate_at,
+                    drive_lowpass=a.drive_lowpass)
+    s = fit_campaign(a.campaign, a.out, by=a.by, config=cfg, log=lambda m: print(m, file=sys.stderr),
+                     jobs=a.jobs)
+    bad = [f["id"] for f in s["fits"] if not f["converged"]]
+    print(f"wrote {len(s['fits'])} fit(s) of campaign {s['campaign']!r} to {a.out} (summary.json, "
+          f"<fit>/posterior.nc, <fit>/fit.json; SI units)")
+    for f in s["fits"]:
+        print(f"  {f['id']}: {'converged' if f['converged'] else 'NOT converged'}, "
+              f"RMSE {f['rmse']:.4g} N")
+    if bad:
+        print(f"not converged (R-hat > 1.01 or ESS < 400 for some parameter): {', '.join(bad)}")
+        return 1
+
+
+def _cmd_law(a):
+    from ..infer.law import fit_law
+    doc = fit_law(a.fit_dir, family=a.family, seed=a.seed, log=lambda m: print(m, file=sys.stderr))
+    print(f"wrote {a.fit_dir}/law.json: family {doc['family']} for {', '.join(doc['force_dependent'])} "
+          f"(other parameters shared), {len(doc['levels'])} applied forces")
+    for fam, c in doc["comparison"].items():
+        print(f"  {fam:<11} held-out ELPD {c['elpd']:9.2f} nats (SE {c['se']:.2f})")
+
+
+def _cmd_validate(a):
+    from ..validate import validate
+    doc = validate(a.fit_dir, a.campaign, a.test, a.out, n_draws=a.draws, seed=a.seed,
+                   log=lambda m: print(m, file=sys.stderr))
+    print(f"wrote {a.out}/validation.json (and per test <id>.bands.csv, <id>.png)")
+    print(f"{'test':<34}{'source':<26}{'cover95':>8}{'cover50':>8}{'RMSE N':>10}{'NRMSE':>8}")
+    for r in doc["tests"]:
+        print(f"{r['test']:<34}{r['draws_source'][:25]:<26}{r['coverage95']:8.3f}{r['coverage50']:8.3f}"
+              f"{r['rmse_N']:10.4g}{r['nrmse']:8.4f}")
+
+
+def _cmd_table(a):
+    from ..quicklook import campaign_table
+    print(campaign_table(a.campaign, published=a.published, eps=a.eps))
+
+
+def _harmonic_arg(text: str) -> tuple[float, float]:
+    from ..errors import InputError
+    parts = text.split(",")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        return float(parts[0]), float(parts[1])
+    except ValueError:
+        raise InputError(f"--harmonic {text!r}: expected AMP_M,FREQ_HZ (two numbers, e.g. 0.0254,0.2)") from None
+
+
+def _cmd_predict(a):
+    from ..predict import write_prediction
+    m = write_prediction(a.fit_dir, a.out, input_csv=a.input,
+                         harmonic=_harmonic_arg(a.harmonic) if a.harmonic else None,
+                         applied=a.applied, n_draws=a.draws, seed=a.seed,
+                         include_offset=a.include_offset)
+    ap = m["applied"]
+    print(f"wrote {a.out}: bands.csv, cycles.csv, prediction.json at applied {ap['value']:g} "
+          f"{ap['unit']} ({m['draws_source']}, {m['n_draws']} draws; time s, displacement m, "
+          "force N, energy J)")
+
+
+def _cmd_advantage(a):
+    from ..advantage import format_table, write_advantage
+    df = write_advantage(a.fit_dir, a.out)
+    print(format_table(df))
+    print(f"wrote {a.out or a.fit_dir}/advantage.csv and advantage.json")
+
+
+def _cmd_compare(a):
+    from ..infer.compare import compare_campaign, format_table
+    from ..infer.fit import FitConfig
+    samp = _sampler_config(a)
+    models = list(dict.fromkeys(a.model or ["three_stage", "lugre"]))
+    from ..infer.priors import prior_options
+    pri = prior_options(a.prior)
+    cfgs = {m: FitConfig(model=m, likelihood=a.likelihood, seed=a.seed, sampler=samp, priors=pri)
+            for m in models}
+    r = compare_campaign(a.campaign, a.out, cfgs, kinds=a.kind, tests=a.test, seed=a.seed,
+                         offset=a.offset, log=lambda m: print(m, file=sys.stderr), jobs=a.jobs)
+    print(format_table(r))
+    print(f"wrote {a.out}/compare.json and compare.csv (RMSE in N, ELPD in nats of whole held-out tests)")
+    if not all(m["converged"] for lv in r["levels"] for m in lv["models"].values()):
+        print("not converged: some fits stopped at --max-steps; their ELPD and RMSE are less reliable")
+        return 1
+
+
+def _cmd_discover(a):
+    from ..discrepancy.discover import discover
+    from ..infer.fit import FitConfig
+    from ..infer.priors import prior_options
+    samp = _sampler_config(a)
+    cfg = FitConfig(likelihood=a.likelihood, sampler=samp, priors=prior_options(a.prior), tests=tuple(a.test) if a.test else None,
+                    kinds=tuple(a.kind) if a.kind else None, drive_lowpass=a.drive_lowpass)
+    d = discover(a.campaign, a.out, cfg, seed=a.seed, refit=not a.no_refit,
+                 extra_effects=tuple(a.extra_effect or ()), max_effects=a.max_effects,
+                 jobs=a.jobs, log=lambda m: print(m, file=sys.stderr))
+    print(f"{'candidate':<20}{'ELPD gain (nats)':>18}{'SE':>10}{'MAP gain (nats)':>17}"
+          f"{'RMSE after (N)':>16}")
+    for c in d["candidates"]:
+        if c["screened_out"]:      # stage 1: no better in-sample fit, not scored held out
+            gain, se = f"{'not scored':>18}", f"{'':>10}"
+        else:
+            gain, se = f"{c['elpd_gain']:18.1f}", f"{c['elpd_gain_se']:10.1f}"
+        print(f"{c['effect']:<20}{gain}{se}{c['map_gain']:17.1f}{c['rmse_after']:16.4g}")
+    print(f"named effect: {d['named_effect']} ({d['reason']})")
+    for r in d["rounds"][1:]:
+        print(f"round {r['round']} (against 3-stage + {' + '.join(r['baseline_effects'])}): "
+              f"named {r['named_effect']} ({r['reason']})")
+    print(f"RMSE before {d['rmse_before']:.4g} N, after {d['rmse_after']:.4g} N"
+          + (f", noise scale {d['noise_scale']:.4g} N" if d["noise_scale"] else ""))
+    for n, st in d["effect_parameters"].items():
+        print(f"  {n} = {st['mean']:.4g} {st['unit']} [{st['q2.5']:.4g}, {st['q97.5']:.4g}]")
+    from ..report import render_discrepancy_page
+    page = render_discrepancy_page(a.out)
+    print(f"wrote {a.out}/discrepancy.json and {page}")
+
+
+def _cmd_run(a):
+    from ..pipeline import plan_status, run
+    from ..workflow import load_workflow
+    wf = load_workflow(a.workflow)
+    targets = a.targets or ["all"]
+    if a.jobs < 1:
+        raise ValueError(f"-j/--jobs must be >= 1, got {a.jobs}")
+    if a.dry_run:
+        rows = plan_status(wf, targets, a.force)
+        for name, runs, why in rows:
+            print(f"{'run ' if runs else 'skip'}  {name:<40} {why}")
+        n = sum(r[1] for r in rows)
+        print(f"dry run: {n} of {len(rows)} task(s) would run; run folder {wf.out}")
+        return
+    r = run(wf, targets, jobs=a.jobs, scheduler=a.scheduler, force=a.force)
+    if r.failed or r.skipped:
+        for n, why in {**r.failed, **r.skipped}.items():
+            print(f"not done: {n}: {why}")
+        print(f"{len(r.failed)} task(s) failed, {len(r.skipped)} skipped; run the same command "
+              "again to retry only those (finished tasks are cached)")
+        return 1
+    if not r.ran:
+        print(f"nothing to do: {wf.name} is up to date ({len(r.cached)} task(s) cached)")
+    else:
+        print(f"{wf.name}: {len(r.ran)} task(s) ran, {len(r.cached)} up to date, "
+              f"{r.seconds:.0f} s")
+    rep = wf.report_dir / "index.html"
+    if rep.is_file():
+        print(f"report: {rep}")
+
+
+def _cmd_status(a):
+    from ..pipeline import plan_status
+    from ..workflow import load_workflow
+    wf = load_workflow(a.workflow)
+    rows = plan_status(wf, ["all"])
+    for name, runs, why in rows:
+        print(f"{'stale' if runs else 'ok   '}  {name:<40} {why}")
+    stale = sum(r[1] for r in rows)
+    print(f"{wf.name}: {len(rows) - stale} up to date, {stale} stale; run folder {wf.out}")
+
+
+def _cmd_clean(a):
+    from ..pipeline import clean
+    from ..workflow import load_workflow
+    wf = load_workflow(a.workflow)
+    gone = clean(wf)
+    print(f"removed {', '.join(map(str, gone))}" if gone else f"nothing to remove for {wf.name}")
+
+
+def _sampler_config(a):
+    """The SamplerConfig of the options --max-steps and --stored-run (the rest: defaults)."""
+    from ..infer.sampler import SamplerConfig
+    kw = {"max_steps": a.max_steps, "stored_run": a.stored_run}
+    return SamplerConfig(**{k: v for k, v in kw.items() if v is not None})
