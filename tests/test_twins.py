@@ -203,11 +203,24 @@ def test_bad_arguments_and_atomic_failure(tmp_path):
         twins.write_twin("xfd", tmp_path / "x")
     with pytest.raises(ValueError, match="seed"):
         twins.write_twin("brfd", tmp_path / "x", seed=-1)
-    # a failure half-way (no accelerograms where it looks) leaves an existing folder as it was
+    # a failure half-way (no accelerograms where it looks) leaves an earlier twin as it was
     out = tmp_path / "keep"
     out.mkdir()
-    (out / "marker.txt").write_text("old")
+    toml = '[twin]\ngenerator = "frictionuq.twins"\nseed = 1\n'
+    (out / "campaign.toml").write_text(toml)
     with pytest.raises(InputError, match="ground-motion file not found"):
         twins.write_twin("brfd", out, root=tmp_path / "no-ground-motions")
-    assert [p.name for p in out.iterdir()] == ["marker.txt"]
+    assert [p.name for p in out.iterdir()] == ["campaign.toml"]
+    assert (out / "campaign.toml").read_text() == toml
     assert sorted(p.name for p in tmp_path.iterdir()) == ["keep"]
+    # a folder that is not a twin (or a file) is never replaced: refused before any work
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "thesis.txt").write_text("mine")
+    (tmp_path / "afile").write_text("mine")
+    for target, why in ((mine, "is not empty and is not a twin campaign"),
+                        (tmp_path / "afile", "exists and is not a folder")):
+        with pytest.raises(InputError, match=why):
+            twins.write_twin("brfd", target)
+    assert (mine / "thesis.txt").read_text() == "mine" and (tmp_path / "afile").read_text() == "mine"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile", "keep", "mine"]

@@ -220,7 +220,7 @@ def write_advantage(fit_dir, out_dir=None) -> pd.DataFrame:
            "units": UNITS, "columns": COLUMNS,
            "rows": [{k: (None if isinstance(v, float) and not np.isfinite(v) else v)
                      for k, v in r.items()} for r in df.to_dict(orient="records")]}
-    out.mkdir(parents=True, exist_ok=True)
+    atomic.writable_parent(out / "advantage.csv")      # the folder, or one line why not
     atomic.write_text(out / "advantage.csv", df.to_csv(index=False, float_format="%.6g", lineterminator="\n"))
     atomic.write_json(out / "advantage.json", jsonable(doc))
     return df

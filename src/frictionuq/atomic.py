@@ -17,13 +17,40 @@ def _umask() -> int:
     return old
 
 
+def writable_parent(path, create: bool = True) -> Path:
+    """Make the folder `path` is to be written in, or refuse with one line naming `path`: a
+    parent that is a file, or one that cannot be created (InputError, not an OSError with the
+    temporary sibling's name). create=False only checks the nearest existing ancestor (before
+    any work: nothing is made)."""
+    from .errors import InputError
+    path = Path(path)
+    for up in path.parents:          # the nearest existing ancestor must be a folder
+        if up.exists():
+            if not up.is_dir():
+                raise InputError(f"cannot write {path}: {up} is a file, not a folder")
+            break
+    if not create:
+        return path.parent
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise InputError(f"cannot write {path}: {e.strerror or e} ({e.filename or path.parent})") from None
+    return path.parent
+
+
 @contextlib.contextmanager
 def replacing(path):
     """Yield a temporary sibling path to write; on success it replaces `path` (rename), on any
     exception it is removed and `path` is left as it was."""
+    from .errors import InputError
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    if path.is_dir():
+        raise InputError(f"cannot write the file {path}: it is a folder")
+    writable_parent(path)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as e:
+        raise InputError(f"cannot write {path}: {e.strerror or e} ({path.parent})") from None
     os.close(fd)
     try:
         os.chmod(tmp, 0o666 & ~_umask())     # mkstemp makes 0600; give the usual mode
@@ -59,9 +86,19 @@ def output_dir(path):
 
     On any exception the temporary folder is removed and `path` is left exactly as it was.
     """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
+    from .errors import InputError
+    path = Path(path).absolute()
+    cwd = Path.cwd()
+    if path.exists() and (path.resolve() == cwd.resolve() or path.resolve() in cwd.resolve().parents):
+        raise InputError(f"cannot replace {path}: it is the current folder or holds it; "
+                         "choose a new folder")
+    if path.exists() and not path.is_dir():
+        raise InputError(f"cannot replace {path} by a folder: it is a file")
+    writable_parent(path)
+    try:
+        tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
+    except OSError as e:
+        raise InputError(f"cannot write {path}: {e.strerror or e} ({path.parent})") from None
     os.chmod(tmp, 0o777 & ~_umask())          # mkdtemp makes 0700
     try:
         yield tmp
@@ -77,16 +114,21 @@ def output_dir(path):
         shutil.rmtree(old, ignore_errors=True)
 
 
-def check_replaceable(source: Path, out: Path, marker: str, source_what: str, out_what: str) -> None:
-    """Refuse an output folder that `output_dir` must not replace: the source folder itself, a
-    file, or a non-empty folder that is not a previous output (recognised by its `marker` file)."""
+def check_replaceable(source: Path | None, out: Path, marker: str, source_what: str, out_what: str,
+                      is_previous=None) -> None:
+    """Refuse an output folder that `output_dir` must not replace: the source folder itself (or
+    one holding it), a file, or a non-empty folder that is not a previous output (recognised by
+    its `marker` file, and `is_previous(folder)` when given)."""
     from .errors import InputError
-    source, out = Path(source), Path(out)
-    if out.resolve() == source.resolve():
-        raise InputError(f"--out {out}: must differ from the {source_what} folder")
+    out = Path(out)
+    if source is not None:
+        src = Path(source).resolve()
+        if out.resolve() == src or out.resolve() in src.parents:
+            raise InputError(f"--out {out}: must differ from the {source_what} folder and not hold it")
     if out.exists():
         if not out.is_dir():
             raise InputError(f"--out {out}: exists and is not a folder")
-        if any(out.iterdir()) and not (out / marker).is_file():
+        previous = (out / marker).is_file() and (is_previous is None or is_previous(out))
+        if any(out.iterdir()) and not previous:
             raise InputError(f"--out {out}: exists, is not empty and is not {out_what}; "
                              "choose a new folder (it would be replaced)")

@@ -236,7 +236,8 @@ def read_record(folder: Path, test: dict, units: dict, columns: dict, where: str
     rel = test["file"]
     path = (folder / rel)
     if not path.is_file():
-        raise InputError(f"{where}, key file: {path} not found")
+        raise InputError(f"{where}, key file: {path} "
+                         + ("is a folder, not a file" if path.is_dir() else "not found"))
     name = path.name.lower()
     if name.endswith(".json") or name.endswith(".json.gz"):
         cols, own, _ = read_arts_json(path)
@@ -251,8 +252,7 @@ def read_record(folder: Path, test: dict, units: dict, columns: dict, where: str
         check_time(path, cols["time"], line_offset=0, what="key data, row")
     else:
         hdr = {k: columns.get(k, k) for k in ("time", "displacement", "force")}
-        cols = read_csv(path, hdr, {"applied": columns.get("applied", "applied")})
-        check_time(path, cols["time"])
+        cols = read_csv(path, hdr, {"applied": columns.get("applied", "applied")})  # time checked
     rec = Record(t=U.to_si(cols["time"], "time", units["time"]),
                  x=U.to_si(cols["displacement"], "displacement", units["displacement"]),
                  force=U.to_si(cols["force"], "force", units["force"]),

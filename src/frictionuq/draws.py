@@ -117,7 +117,7 @@ def choose_draws(fit_dir, applied_si: float, n: int, rng, summary: dict | None =
         params, model, effects = draws_at(fit_dir, a, n, rng)
     except InputError as e:
         raise InputError(f"no fitted level at applied force {shown} (fitted: {lv}) and no usable "
-                         f"force-dependence law in {fit_dir}: {e}") from None
+                         f"force-dependence law: {e}") from None     # e names the folder
     if not levels:
         raise InputError(f"{fit_dir}: no fit at a single applied force to take the noise from")
     near = min(levels, key=lambda v: abs(math.log(v) - math.log(a)) if v > 0 and a > 0 else abs(v - a))

@@ -3,6 +3,7 @@ or key, and what is wrong; the CLI prints it and exits with code 2 (no traceback
 from __future__ import annotations
 
 from numbers import Integral
+from pathlib import Path
 
 EXIT_BAD_INPUT = 2
 
@@ -12,6 +13,15 @@ class InputError(ValueError):
 
     def __init__(self, message: str):
         super().__init__(" ".join(str(message).split()))   # always one line
+
+
+def not_a_file(path) -> str | None:
+    """Why `path` cannot be read as a file ("is a folder, not a file" or "file not found"), or
+    None when it is one."""
+    p = Path(path)
+    if p.is_file():
+        return None
+    return "is a folder, not a file" if p.is_dir() else "file not found"
 
 
 def where(path, row: int | None = None, key: str | None = None) -> str:

@@ -15,7 +15,8 @@ from .errors import InputError
 SUMMARY = "summary.json"
 
 
-def _read_json(path: Path, what: str) -> dict:
+def read_json(path: Path, what: str) -> dict:
+    """A JSON object from `path`, or one line naming the file and what is wrong."""
     if not path.is_file():
         raise InputError(f"{path}: missing ({what})")
     try:
@@ -34,7 +35,7 @@ def load_summary(fit_dir) -> dict:
         raise InputError(f"{fit_dir}: no such fit output folder")
     if not (fit_dir / SUMMARY).is_file():
         raise InputError(f"{fit_dir}: not a fit output folder (no {SUMMARY}); run `frictionuq fit` first")
-    s = _read_json(fit_dir / SUMMARY, "summary of a fit output folder")
+    s = read_json(fit_dir / SUMMARY, "summary of a fit output folder")
     fits = s.get("fits")
     if not isinstance(fits, list) or not fits or not all(isinstance(f, dict) and "id" in f for f in fits):
         raise InputError(f"{fit_dir / SUMMARY}: key fits: expected a non-empty list of fits with ids "
@@ -101,7 +102,7 @@ def load_posterior(fit_dir, fit_id: str) -> FitPosterior:
     """Posterior draws of fit `fit_id` (fit.json + posterior.nc under FIT_DIR/<fit_id>/)."""
     from . import azadapter
     fdir = Path(fit_dir) / fit_id
-    rec = _read_json(fdir / "fit.json", f"record of fit {fit_id}")
+    rec = read_json(fdir / "fit.json", f"record of fit {fit_id}")
     nc = fdir / "posterior.nc"
     if not nc.is_file():
         raise InputError(f"{nc}: missing (posterior of fit {fit_id}; incomplete fit output)")

@@ -99,9 +99,13 @@ def harmonic_input(amplitude_m: float, frequency_hz: float, cycles: int = HARMON
 def read_input(path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """(t, x, applied or None) from a CSV with columns time (s), displacement (m) and optionally
     applied (N or Pa); errors name the file and line."""
-    from .records import check_time, read_csv
+    from . import model as M
+    from .records import read_csv
     cols = read_csv(path, {"time": "time", "displacement": "displacement"}, {"applied": "applied"})
-    check_time(path, cols["time"])
+    try:          # the record's own faults (e.g. its applied signal) name the file
+        M.prepare(cols["time"], cols["displacement"], cols.get("applied"))
+    except ValueError as e:
+        raise InputError(f"{path}: {e}") from None
     return cols["time"], cols["displacement"], cols.get("applied")
 
 

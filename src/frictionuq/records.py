@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .errors import InputError
+from .errors import InputError, not_a_file
 
 MIN_SAMPLES = 10
 ARTS_UNIT_KEYS = {"time": "time units", "displacement": "displacement units",
@@ -45,7 +45,7 @@ def _numeric_column(path, df: pd.DataFrame, header: str, logical: str) -> np.nda
                 what = f"{raw!r} is not finite" if not np.isnan(v) else f"{raw!r} is NaN"
             except (TypeError, ValueError):
                 what = f"{raw!r} is not a number"
-        raise InputError(f"{path}, line {i + 2}, column {header!r} ({logical}): {what}")
+        raise InputError(f"{path}, line {int(col.index[i]) + 2}, column {header!r} ({logical}): {what}")
     return num.to_numpy(dtype=float)
 
 
@@ -55,17 +55,27 @@ def read_csv(path, columns: dict[str, str], optional: dict[str, str] | None = No
     header to read; `optional` likewise for columns that may be absent. Extra columns are
     ignored. Returns {logical: float64 array} (file units)."""
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: file not found")
+    if not_a_file(path):
+        raise InputError(f"{path}: {not_a_file(path)}")
     if path.stat().st_size == 0:
         raise InputError(f"{path}: the file is empty")
     try:
-        df = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
+        # blank lines kept as rows, then dropped, so that the index stays the file's line - 2
+        df = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True,
+                         skip_blank_lines=False)
     except pd.errors.EmptyDataError:
         raise InputError(f"{path}: the file is empty") from None
     except (pd.errors.ParserError, UnicodeDecodeError) as e:
         raise InputError(f"{path}: not a readable CSV file ({' '.join(str(e).split())})") from None
     df.columns = [str(c).strip() for c in df.columns]
+    blank = df.apply(lambda c: c.isna() | (c.astype(str).str.strip() == "")).all(axis=1)
+    df = df[~blank.to_numpy()]
+    dup = sorted({c for c in df.columns if list(df.columns).count(c) > 1}
+                 | {str(c).rsplit(".", 1)[0] for c in df.columns
+                    if "." in str(c) and str(c).rsplit(".", 1)[1].isdigit()
+                    and str(c).rsplit(".", 1)[0] in df.columns})
+    if dup:       # pandas renames a repeated header to NAME.1: which one was meant is unknown
+        raise InputError(f"{path}: the header repeats column {dup[0]!r}; give each column once")
     out = {}
     for logical, header in columns.items():
         if header not in df.columns:
@@ -78,15 +88,19 @@ def read_csv(path, columns: dict[str, str], optional: dict[str, str] | None = No
     for logical, header in (optional or {}).items():
         if header in df.columns:
             out[logical] = _numeric_column(path, df, header, logical)
+    if "time" in out:        # named by the file's own line (blank lines counted)
+        check_time(path, out["time"], lines=df.index.to_numpy() + 2)
     return out
 
 
-def check_time(path, t: np.ndarray, line_offset: int = 2, what: str = "line") -> None:
-    """Time must be strictly increasing; names the first offending line (or row)."""
+def check_time(path, t: np.ndarray, line_offset: int = 2, what: str = "line", lines=None) -> None:
+    """Time must be strictly increasing; names the first offending line (or row): sample k's
+    is lines[k] when given, else k + line_offset."""
     bad = np.flatnonzero(np.diff(t) <= 0)
     if bad.size:
         k = int(bad[0]) + 1
-        raise InputError(f"{path}, {what} {k + line_offset}: time is not strictly increasing "
+        at = int(lines[k]) if lines is not None else k + line_offset
+        raise InputError(f"{path}, {what} {at}: time is not strictly increasing "
                          f"({t[k - 1]:.10g} then {t[k]:.10g})")
 
 
@@ -105,8 +119,8 @@ def read_arts_json(path) -> tuple[dict[str, np.ndarray], dict[str, str], dict]:
     """An ARTS-format JSON record -> (columns {time, displacement, force, applied} in the
     record's units, the record's units {time, displacement, force, applied}, other metadata)."""
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: file not found")
+    if not_a_file(path):
+        raise InputError(f"{path}: {not_a_file(path)}")
     if path.stat().st_size == 0:
         raise InputError(f"{path}: the file is empty")
     d = _load_json(path)

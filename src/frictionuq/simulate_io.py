@@ -17,16 +17,17 @@ import numpy as np
 
 from . import atomic
 from .environment import environment
-from .errors import InputError
+from .errors import InputError, not_a_file
+from . import model as M
 from .model import simulate
-from .records import check_time, read_csv
+from .records import read_csv
 
 
 def read_params(path) -> tuple[dict, dict | None]:
     """(base parameters, effects) from a parameter JSON file; errors name the file and key."""
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: file not found")
+    if not_a_file(path):
+        raise InputError(f"{path}: {not_a_file(path)}")
     try:
         doc = json.loads(path.read_text())
     except json.JSONDecodeError as e:
@@ -49,7 +50,16 @@ def simulate_files(params_path, input_path, out_path, model: str = "three_stage"
     """Simulate the force for the record in `input_path`; write `out_path`. Returns the sample count."""
     params, effects = read_params(params_path)
     cols = read_csv(input_path, {"time": "time", "displacement": "displacement"}, {"applied": "applied"})
-    check_time(input_path, cols["time"])
+    import math
+    if not (math.isfinite(float(eps)) and float(eps) >= 0):
+        raise InputError(f"eps {eps!r}: the reversal dead-band must be finite and >= 0 m")
+    try:          # the record's own faults (e.g. the applied signal) name the input file
+        M.prepare(cols["time"], cols["displacement"], cols.get("applied"))
+    except ValueError as e:
+        raise InputError(f"{input_path}: {e}") from None
+    for o in (Path(out_path), Path(f"{out_path}.json")):     # refused before anything is written
+        if o.is_dir():
+            raise InputError(f"cannot write the file {o}: it is a folder")
     try:
         F = simulate(cols["time"], cols["displacement"], params, effects=effects, model=model,
                      eps=eps, applied=cols.get("applied"))
@@ -62,6 +72,7 @@ def simulate_files(params_path, input_path, out_path, model: str = "three_stage"
                delimiter=",", header="time,displacement,force", comments="")
     from . import __version__
     from .campaign import sha256_file
+    atomic.write_text(out_path, buf.getvalue())
     atomic.write_json(f"{out_path}.json", {
         "package_version": __version__, "environment": environment(),
         "command": "simulate", "model": model, "eps_m": eps,
@@ -69,5 +80,4 @@ def simulate_files(params_path, input_path, out_path, model: str = "three_stage"
         "params_file": str(params_path), "params_sha256": sha256_file(params_path),
         "input_file": str(input_path), "input_sha256": sha256_file(input_path),
         "samples": int(F.size), "units": {"time": "s", "displacement": "m", "force": "N"}})
-    atomic.write_text(out_path, buf.getvalue())
     return int(F.size)

@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__, published as pub
+from . import __version__, atomic, published as pub
 from .atomic import output_dir
 from .groundmotion import RECORDS, displacement_history, ground_motions_dir, load_record
 from .model import simulate
@@ -305,6 +305,17 @@ The force does not follow the `applied` signal (no applied_tracking effect in th
 """
 
 
+def _is_twin(folder: Path) -> bool:
+    """Whether `folder` holds a campaign this module wrote (its campaign.toml has a [twin] table
+    naming this generator)."""
+    import tomllib
+    try:
+        doc = tomllib.loads((folder / "campaign.toml").read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return False
+    return isinstance(doc.get("twin"), dict) and doc["twin"].get("generator") == "frictionuq.twins"
+
+
 def write_twin(device: str, out_dir, seed: int = DEFAULT_SEED, root=None) -> dict:
     """Write the twin campaign of `device` ("brfd" or "mfd") into `out_dir` (replaced atomically)
     and return a manifest-like dict. `root`: the ground-motions folder (default: data/ground-motions)."""
@@ -318,6 +329,9 @@ def write_twin(device: str, out_dir, seed: int = DEFAULT_SEED, root=None) -> dic
         s["file"] = f"tests/{s['id']}.csv"
     root = ground_motions_dir() if root is None else Path(root)
     manifest_tests = []
+    # only an empty folder or an earlier twin (a campaign.toml with its [twin] table) is replaced
+    atomic.check_replaceable(None, Path(out_dir), "campaign.toml", "", "a twin campaign",
+                             is_previous=_is_twin)
     with output_dir(out_dir) as tmp:
         (tmp / "tests").mkdir()
         for s in specs:

@@ -78,32 +78,34 @@ def validate(fit_dir, campaign_path, test_ids, out_dir, *, n_draws: int = 400, s
     if unknown:
         raise InputError(f"{campaign_path}: no test {unknown[0]!r}; tests: {', '.join(by_id)}")
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    # the folder is written whole (a bad test later in the list leaves nothing half-written)
+    atomic.check_replaceable(fit_dir, out, "validation.json", "fit", "a validation folder")
     results = []
     lowpass_mult = fit_drive_lowpass(summary)    # measured records: filtered like the fit's
-    for tid in test_ids:
-        te = by_id[tid]
-        r = te.record
-        eps = default_eps(r.x)
-        p = predict(fit_dir, te.applied, r.t, r.x, eps=eps, n_draws=n_draws, seed=seed,
-                    include_offset=True, summary=summary, drive_lowpass=lowpass_mult)
-        s = score(r.force, p.bands)
-        s.update(test=tid, applied_si=te.applied, kind=te.kind, eps_m=eps,
-                 drive_lowpass=lowpass_mult,
-                 held_out=tid not in fitted_tests, draws_source=p.draws.source)
-        results.append(s)
-        atomic.write_text(out / f"{tid}.bands.csv", p.bands.to_csv(index=False))
-        if figures:
-            _figure(out / f"{tid}.png", r.t, r.force, p.bands,
-                    f"{camp.name} / {tid}: coverage95 {s['coverage95']:.2f}, NRMSE {s['nrmse']:.3f} "
-                    f"({p.draws.source})")
-        log(f"{tid}: coverage95 {s['coverage95']:.3f}, coverage50 {s['coverage50']:.3f}, "
-            f"RMSE {s['rmse_N']:.4g} N, NRMSE {s['nrmse']:.4f}")
-    doc = {"package_version": __version__, "environment": environment(),
-           "fit_dir": str(fit_dir), "campaign": camp.name,
-           "campaign_path": str(campaign_path), "seed": seed, "n_draws": n_draws,
-           "units": "force N, applied_si N or Pa, eps m; coverage fractions of samples; nrmse = rmse / "
-                    "peak-to-peak measured force",
-           "tests": results}
-    atomic.write_json(out / "validation.json", doc)
+    with atomic.output_dir(out) as tmp:
+        for tid in test_ids:
+            te = by_id[tid]
+            r = te.record
+            eps = default_eps(r.x)
+            p = predict(fit_dir, te.applied, r.t, r.x, eps=eps, n_draws=n_draws, seed=seed,
+                        include_offset=True, summary=summary, drive_lowpass=lowpass_mult)
+            s = score(r.force, p.bands)
+            s.update(test=tid, applied_si=te.applied, kind=te.kind, eps_m=eps,
+                     drive_lowpass=lowpass_mult,
+                     held_out=tid not in fitted_tests, draws_source=p.draws.source)
+            results.append(s)
+            atomic.write_text(tmp / f"{tid}.bands.csv", p.bands.to_csv(index=False))
+            if figures:
+                _figure(tmp / f"{tid}.png", r.t, r.force, p.bands,
+                        f"{camp.name} / {tid}: coverage95 {s['coverage95']:.2f}, NRMSE {s['nrmse']:.3f} "
+                        f"({p.draws.source})")
+            log(f"{tid}: coverage95 {s['coverage95']:.3f}, coverage50 {s['coverage50']:.3f}, "
+                f"RMSE {s['rmse_N']:.4g} N, NRMSE {s['nrmse']:.4f}")
+        doc = {"package_version": __version__, "environment": environment(),
+               "fit_dir": str(fit_dir), "campaign": camp.name,
+               "campaign_path": str(campaign_path), "seed": seed, "n_draws": n_draws,
+               "units": "force N, applied_si N or Pa, eps m; coverage fractions of samples; nrmse = rmse / "
+                        "peak-to-peak measured force",
+               "tests": results}
+        atomic.write_json(tmp / "validation.json", doc)
     return doc

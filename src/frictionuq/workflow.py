@@ -327,6 +327,11 @@ def load_workflow(path) -> Workflow:
     rep = (base / c.str_(t, "report", "[workflow]", f"../reports/{name}")).resolve()
     if out == campaign or campaign in out.parents:
         c.fail("[workflow].output", f"{out} lies inside the campaign folder")
+    if out in campaign.parents or out == base or out in base.parents:
+        c.fail("[workflow].output", f"{out} holds the campaign or this workflow file; a run "
+               "folder of its own is needed (e.g. ../out/<name>)")
+    if out.exists() and not out.is_dir():
+        c.fail("[workflow].output", f"{out} is a file, not a folder")
     cfg = {"workflow": {"name": name, "description": c.str_(t, "description", "[workflow]", ""),
                         "campaign": str(campaign), "seed": c.num(t, "seed", "[workflow]", 1,
                                                                  integer=True, minimum=0),

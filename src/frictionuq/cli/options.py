@@ -37,9 +37,20 @@ def _add_drive_lowpass(s) -> None:
                         "off); predict and validate then filter their measured inputs alike")
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser, its usage errors in the command line's one-line form (exit 2); the
+    subcommands' parsers are of this class too (add_subparsers makes them so)."""
+
+    def error(self, message):
+        import sys
+        msg = " ".join(str(message).split())
+        print(f"frictionuq: error: {self.prog}: {msg} (see `{self.prog} --help`)", file=sys.stderr)
+        raise SystemExit(2)
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .. import __version__
-    p = argparse.ArgumentParser(prog="frictionuq", description=DESCRIPTION)
+    p = _Parser(prog="frictionuq", description=DESCRIPTION)
     p.add_argument("--version", action="version", version=f"frictionuq {__version__}")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 

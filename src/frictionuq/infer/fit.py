@@ -198,8 +198,7 @@ def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True
     log = log or (lambda m: None)
     t0 = time.perf_counter()
     records, scales, space, logpost = prepare(spec)     # bad config: refused before any file
-    fdir = Path(out_dir) / spec.id
-    fdir.mkdir(parents=True, exist_ok=True)
+    fdir = atomic.writable_parent(Path(out_dir) / spec.id / "fit.json")
     theta0 = None
     if start is not None:
         missing = [n for n in space.names if n not in start]
@@ -262,6 +261,7 @@ def fit_campaign(campaign_path, out_dir, by: str = "applied", config: FitConfig 
     from ..campaign import load_campaign
     from ..workers import Workers
     jobs = Workers(jobs).jobs               # refused here, before any work, if not an int >= 1
+    atomic.writable_parent(Path(out_dir) / "summary.json", create=False)   # out: a folder, or none yet
     camp = load_campaign(campaign_path)
     specs = plan(camp, by, config)
     for s in specs:               # every fit's priors checked before the first fit starts

@@ -35,7 +35,6 @@ predictions unless the caller names one.
 """
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -58,11 +57,9 @@ def level_draws(fit_dir) -> tuple[list[dict], dict]:
     """Per-level posterior draws of a `fit --by applied` folder: list of {"id", "applied" (SI),
     "draws": {name: (S,) array}, "fixed": {...}, "lo"/"hi": prior bounds}, and the summary."""
     from .. import azadapter
+    from ..fitdir import load_summary, read_json
     fit_dir = Path(fit_dir)
-    sp = fit_dir / "summary.json"
-    if not sp.is_file():
-        raise InputError(f"{fit_dir}: not a fit output folder (no summary.json); run `frictionuq fit` first")
-    summary = json.loads(sp.read_text())
+    summary = load_summary(fit_dir)       # one line naming the file when it is not a fit's
     levels = []
     for f in summary["fits"]:
         if f.get("applied") is None:
@@ -71,16 +68,23 @@ def level_draws(fit_dir) -> tuple[list[dict], dict]:
         fj = fit_dir / f["id"] / "fit.json"
         if not nc.is_file() or not fj.is_file():
             raise InputError(f"{fit_dir / f['id']}: posterior.nc or fit.json missing (incomplete fit)")
-        rec = json.loads(fj.read_text())
-        dt = azadapter.load(nc)
-        post = dt["posterior"]
-        space = rec["space"]
-        draws = {n: np.asarray(post[n].values, float).ravel() for n in space["free"]}
-        bounds = {n: (space["priors"][n]["lower"], space["priors"][n]["upper"])
-                  for n in space["free"] if "ratio_of" not in space["priors"][n]}
-        levels.append({"id": f["id"], "applied": float(f["applied"]), "draws": draws,
-                       "fixed": dict(space["fixed"]), "model": space["model"],
-                       "effects": tuple(space["effects"]), "bounds": bounds,
+        rec = read_json(fj, f"record of fit {f['id']}")
+        try:
+            space = rec["space"]
+            bounds = {n: (space["priors"][n]["lower"], space["priors"][n]["upper"])
+                      for n in space["free"] if "ratio_of" not in space["priors"][n]}
+            fixed, model, effects = dict(space["fixed"]), space["model"], tuple(space["effects"])
+            applied = float(f["applied"])
+        except (KeyError, TypeError, ValueError) as e:
+            raise InputError(f"{fj}: not a frictionuq fit record (key {e})") from None
+        try:
+            post = azadapter.load(nc)["posterior"]
+            draws = {n: np.asarray(post[n].values, float).ravel() for n in space["free"]}
+        except (OSError, KeyError, ValueError) as e:
+            raise InputError(f"{nc}: cannot read the posterior ({' '.join(str(e).split())})") from None
+        levels.append({"id": f["id"], "applied": applied, "draws": draws,
+                       "fixed": fixed, "model": model,
+                       "effects": effects, "bounds": bounds,
                        "converged": bool(f.get("converged"))})
     levels.sort(key=lambda L: L["applied"])
     return levels, summary
@@ -272,7 +276,8 @@ def load_law(fit_dir) -> dict:
     if not p.is_file():
         raise InputError(f"{fit_dir}: no force-dependence law ({LAW_FILE}); run `frictionuq law "
                          f"{fit_dir}` after a `fit --by applied` with 2 or more applied forces")
-    return json.loads(p.read_text())
+    from ..fitdir import read_json
+    return read_json(p, "force-dependence law")
 
 
 def law_values(law: dict, name: str, applied_si, with_scatter: bool, rng) -> np.ndarray:

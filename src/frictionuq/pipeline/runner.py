@@ -232,9 +232,27 @@ def run(wf, targets=("all",), jobs: int = 1, scheduler: str | None = None, force
     return res
 
 
+#: what a run folder holds (the stages' folders, the cache, logs and run.json): `clean` removes
+#: a folder only when it holds nothing else, so a workflow whose output names a folder of the
+#: user's (output = ".") cannot have it deleted
+RUN_ENTRIES = {"ingest", "fit", "predict", "compare", "discrepancy", "advantage", "logs",
+               ".cache", "run.json", "report"}
+
+
 def clean(wf) -> list[Path]:
-    """Remove the run folder and the report of a workflow. Returns what was removed."""
+    """Remove the run folder and the report of a workflow. Returns what was removed. A run
+    folder holding anything a run does not write is refused (InputError), nothing removed."""
     import shutil
+    from ..errors import InputError
+    out = Path(wf.out)
+    if out.is_dir():
+        foreign = sorted(p.name for p in out.iterdir() if p.name not in RUN_ENTRIES)
+        if foreign:
+            raise InputError(f"{wf.path}: [workflow].output {out} holds what no run wrote ("
+                             f"{', '.join(foreign[:5])}{', ...' if len(foreign) > 5 else ''}); "
+                             "not removed: delete it by hand if it is a run folder")
+    elif out.exists():
+        raise InputError(f"{wf.path}: [workflow].output {out} is a file, not a run folder; not removed")
     gone = []
     for p in (Path(wf.out), Path(wf.report_dir) / "index.html"):
         if p.is_dir():

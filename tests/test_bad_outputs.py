@@ -1,0 +1,201 @@
+"""Output paths that cannot be written, outputs that must not be replaced, and corrupt or
+ambiguous inputs, across the commands: one line `frictionuq: error: ...`, exit 2, no traceback,
+nothing half-written and nothing of the user's removed. (Cases found by probing the CLI on
+2026-12-01; each failed on the code before.)"""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from frictionuq.cli import main
+from frictionuq.infer.fit import FitConfig, fit_campaign
+from frictionuq.infer.sampler import SamplerConfig
+
+ROOT = Path(__file__).resolve().parents[1]
+TWIN = ROOT / "data" / "brfd-twin"
+TINY = dict(nwalkers=32, run_walkers=8, chunk=50, min_steps=50, max_steps=50, burn_rounds=1, burn_max_rounds=1,
+            burn_steps=20, n_random_starts=1, n_prior_starts=1, n_global_starts=0, progress=False)
+
+
+@pytest.fixture(scope="module")
+def work(tmp_path_factory):
+    """A two-test copy of the BRFD twin, a one-test fit of it (tiny, not converged), an input
+    record and a parameter file."""
+    import json
+    import shutil
+
+    from frictionuq import published
+    root = tmp_path_factory.mktemp("bad")
+    camp = root / "camp"
+    (camp / "tests").mkdir(parents=True)
+    toml = (TWIN / "campaign.toml").read_text()
+    head, *blocks = toml.split("[[tests]]")
+    keep = [b for b in blocks if 'id = "h-35N-0.05Hz"' in b or 'id = "h-35N-0.5Hz"' in b]
+    (camp / "campaign.toml").write_text(head + "".join("[[tests]]" + b for b in keep))
+    for tid in ("h-35N-0.05Hz", "h-35N-0.5Hz"):
+        shutil.copy(TWIN / "tests" / f"{tid}.csv", camp / "tests" / f"{tid}.csv")
+    fit_campaign(camp, root / "fit", config=FitConfig(tests=("h-35N-0.5Hz",), likelihood="iid",
+                                                      sampler=SamplerConfig(**TINY), n_predictive=4))
+    t = np.arange(500) / 100.0
+    np.savetxt(root / "X.csv", np.column_stack([t, 0.01 * np.sin(t)]), delimiter=",",
+               header="time,displacement", comments="")
+    (root / "P.json").write_text(json.dumps(published.brfd_params(133.0)))
+    (root / "afile").write_text("mine\n")
+    return root
+
+
+def _one_line(capsys, code, fragment):
+    """Exit 2 and one error line, the last on stderr (progress lines may come before it)."""
+    err = capsys.readouterr().err
+    assert code == 2, err
+    errors = [ln for ln in err.splitlines() if ln.startswith("frictionuq: error:")]
+    assert len(errors) == 1 and err.splitlines()[-1] == errors[0] and fragment in errors[0], err
+    assert "Traceback" not in err, err
+    return errors[0]
+
+
+@pytest.mark.parametrize("argv", [
+    ["ingest", "{camp}", "--out", "{out}"],
+    ["twin", "mfd", "--out", "{out}"],
+    ["simulate", "--params", "{root}/P.json", "--input", "{root}/X.csv", "--out", "{out}"],
+    ["predict", "{root}/fit", "--harmonic", "0.02,0.5", "--applied", "35", "--out", "{out}"],
+    ["validate", "{root}/fit", "{camp}", "--test", "h-35N-0.05Hz", "--out", "{out}"],
+    ["advantage", "{root}/fit", "--out", "{out}"],
+    ["fit", "{camp}", "--out", "{out}", "--max-steps", "5"],
+])
+def test_an_output_under_a_file_is_one_line(work, capsys, argv):
+    """--out below an existing file (e.g. /dev/null/x): before, an OSError's traceback or a
+    message naming a temporary sibling."""
+    out = work / "afile" / "x"
+    args = [a.format(camp=work / "camp", root=work, out=out) for a in argv]
+    _one_line(capsys, main(args), f"{work / 'afile'} is a file, not a folder")
+    assert (work / "afile").read_text() == "mine\n"
+
+
+def test_twin_and_validate_do_not_replace_a_folder_of_the_users(work, tmp_path, capsys):
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "thesis.txt").write_text("mine")
+    _one_line(capsys, main(["twin", "brfd", "--out", str(mine)]), "is not a twin campaign")
+    _one_line(capsys, main(["validate", str(work / "fit"), str(work / "camp"), "--test",
+                            "h-35N-0.05Hz", "--out", str(mine)]), "is not a validation folder")
+    _one_line(capsys, main(["twin", "brfd", "--out", str(work / "afile")]), "exists and is not a folder")
+    assert [p.name for p in mine.iterdir()] == ["thesis.txt"]
+    assert (work / "afile").read_text() == "mine\n"
+
+
+def test_validate_writes_nothing_when_a_later_test_fails(work, tmp_path, capsys):
+    """The second held-out test sits at an applied force the fit cannot predict (no law): no
+    folder is left, and an earlier validation folder is kept whole."""
+    camp = tmp_path / "camp50"
+    import shutil
+    shutil.copytree(work / "camp", camp)
+    toml = (camp / "campaign.toml").read_text()
+    i = toml.index('id = "h-35N-0.5Hz"')
+    j = toml.index("applied", i)
+    k = toml.index("\n", j)
+    (camp / "campaign.toml").write_text(toml[:j] + "applied = 50.0" + toml[k:])
+    both = ["--test", "h-35N-0.05Hz", "--test", "h-35N-0.5Hz"]
+    out = tmp_path / "val"
+    _one_line(capsys, main(["validate", str(work / "fit"), str(camp), *both, "--out", str(out)]),
+              "no fitted level at applied force 50 N")
+    assert not out.exists()
+    assert main(["validate", str(work / "fit"), str(camp), "--test", "h-35N-0.05Hz", "--out", str(out)]) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    capsys.readouterr()
+    _one_line(capsys, main(["validate", str(work / "fit"), str(camp), *both, "--out", str(out)]),
+              "no fitted level")
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
+
+
+def test_simulate_refuses_a_folder_as_out_and_names_the_faulty_input(work, tmp_path, capsys):
+    odir = tmp_path / "odir"
+    odir.mkdir()
+    base = ["simulate", "--params", str(work / "P.json"), "--input", str(work / "X.csv")]
+    _one_line(capsys, main(base + ["--out", str(odir)]), "it is a folder")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["odir"]        # no odir.json sidecar
+    t = np.arange(500) / 100.0
+    bad = tmp_path / "neg.csv"
+    np.savetxt(bad, np.column_stack([t, 0.01 * np.sin(t), -5 + 0 * t]), delimiter=",",
+               header="time,displacement,applied", comments="")
+    err = _one_line(capsys, main(["simulate", "--params", str(work / "P.json"), "--input", str(bad),
+                                  "--out", str(tmp_path / "s.csv")]), "applied-force signal")
+    assert f"{bad}:" in err and "P.json" not in err
+    _one_line(capsys, main(base + ["--out", str(tmp_path / "s.csv"), "--eps", "-1"]),
+              "eps -1.0: the reversal dead-band")
+    _one_line(capsys, main(["simulate", "--params", str(odir), "--input", str(work / "X.csv"),
+                            "--out", str(tmp_path / "s.csv")]), "is a folder, not a file")
+    assert not (tmp_path / "s.csv").exists()
+
+
+@pytest.mark.parametrize("corrupt, fragment", [
+    (("applied-35N/posterior.nc", "garbage"), "posterior.nc: cannot read the posterior"),
+    (("summary.json", "[]"), "summary.json: expected a JSON object"),
+    (("summary.json", "{bad"), "summary.json: not valid JSON"),
+    (("applied-35N/fit.json", "{bad"), "fit.json: not valid JSON"),
+])
+def test_law_on_a_corrupt_fit_folder_names_the_file(work, tmp_path, capsys, corrupt, fragment):
+    import shutil
+    fit = tmp_path / "fit"
+    shutil.copytree(work / "fit", fit)
+    (fit / corrupt[0]).write_text(corrupt[1])
+    _one_line(capsys, main(["law", str(fit)]), fragment)
+
+
+def test_csv_lines_count_blank_lines_and_a_repeated_column_is_refused(work, tmp_path, capsys):
+    import shutil
+    camp = tmp_path / "camp"
+    shutil.copytree(work / "camp", camp)
+    f = camp / "tests" / "h-35N-0.05Hz.csv"
+    lines = f.read_text().splitlines()
+    bad = lines[:3] + ["", ""] + lines[3:]
+    cells = bad[10].split(",")
+    cells[1] = "abc"                                   # file line 11, displacement
+    bad[10] = ",".join(cells)
+    f.write_text("\n".join(bad) + "\n\n")
+    _one_line(capsys, main(["ingest", str(camp), "--out", str(tmp_path / "o")]),
+              "h-35N-0.05Hz.csv, line 11, column 'displacement'")
+    rows = [lines[0] + ",force"] + [r + ",1" for r in lines[1:]]
+    f.write_text("\n".join(rows) + "\n")
+    _one_line(capsys, main(["ingest", str(camp), "--out", str(tmp_path / "o")]),
+              "the header repeats column 'force'")
+    f.write_text("\n".join(lines[:1] + [""] + lines[1:]) + "\n")      # blank lines alone: fine
+    assert main(["ingest", str(camp), "--out", str(tmp_path / "o")]) == 0
+
+
+@pytest.mark.parametrize("argv, fragment", [
+    (["simulate", "--params", "p", "--input", "x", "--out", "o", "--eps", "1mm"],
+     "frictionuq simulate: argument --eps: invalid float value: '1mm'"),
+    (["fit"], "frictionuq fit: the following arguments are required"),
+    (["nosuch"], "invalid choice: 'nosuch'"),
+])
+def test_usage_errors_are_one_line(capsys, argv, fragment):
+    """argparse's own errors: one line (before, the usage lines came first)."""
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and err.count("\n") == 1 and err.startswith("frictionuq: error:"), err
+    assert fragment in err, err
+
+
+def test_clean_removes_only_a_run_folder(tmp_path, capsys):
+    """A workflow whose output names the user's own folder: refused when it holds the workflow
+    file or the campaign; a folder holding anything a run does not write is not removed."""
+    import shutil
+    camp = tmp_path / "camp"
+    shutil.copytree(TWIN, camp)
+    for output, fragment in ((".", "holds the campaign or this workflow file"),
+                             ("..", "holds the campaign or this workflow file")):
+        wf = tmp_path / "wf.toml"
+        wf.write_text(f'[workflow]\nname = "x"\ncampaign = "camp"\noutput = "{output}"\n')
+        _one_line(capsys, main(["clean", str(wf)]), fragment)
+    mine = tmp_path / "mine"
+    (mine / "fit").mkdir(parents=True)
+    (mine / "thesis.txt").write_text("mine")
+    wf.write_text('[workflow]\nname = "x"\ncampaign = "camp"\noutput = "mine"\n')
+    _one_line(capsys, main(["clean", str(wf)]), "holds what no run wrote (thesis.txt)")
+    assert (mine / "thesis.txt").read_text() == "mine" and (mine / "fit").is_dir()
+    assert (camp / "campaign.toml").is_file() and wf.is_file()
+    (mine / "thesis.txt").unlink()                     # a run folder's own entries only: removed
+    assert main(["clean", str(wf)]) == 0 and not mine.exists()
