@@ -199,3 +199,19 @@ def test_clean_removes_only_a_run_folder(tmp_path, capsys):
     assert (camp / "campaign.toml").is_file() and wf.is_file()
     (mine / "thesis.txt").unlink()                     # a run folder's own entries only: removed
     assert main(["clean", str(wf)]) == 0 and not mine.exists()
+
+
+def test_run_on_a_bad_campaign_is_one_line_before_any_task(work, tmp_path, capsys):
+    """A record the ingest task would refuse: `run` says so in one line (file and line), exit 2,
+    and no run folder is made (before, the task failed: exit 1 and a report of several lines)."""
+    import shutil
+    camp = tmp_path / "camp"
+    shutil.copytree(work / "camp", camp)
+    f = camp / "tests" / "h-35N-0.5Hz.csv"
+    lines = f.read_text().splitlines()
+    lines[6] = lines[6].split(",", 1)[0] + ",x,1,1"
+    f.write_text("\n".join(lines) + "\n")
+    wf = tmp_path / "wf.toml"
+    wf.write_text('[workflow]\nname = "x"\ncampaign = "camp"\noutput = "run"\n')
+    _one_line(capsys, main(["run", str(wf)]), "h-35N-0.5Hz.csv, line 7, column 'displacement'")
+    assert not (tmp_path / "run").exists()

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import sys
 
+
 def _cmd_ingest(a):
     from ..ingest import ingest
     m = ingest(a.campaign, a.out)
@@ -26,7 +27,8 @@ def _cmd_fit(a):
     from ..infer.priors import prior_options
     samp = _sampler_config(a)
     cfg = FitConfig(model=a.model, effects=tuple(a.effect or ()), likelihood=a.likelihood,
-                    seed=a.seed, priors=prior_options(a.prior), sampler=samp, tests=tuple(a.test) if a.test else None,
+                    seed=a.seed, priors=prior_options(a.prior), sampler=samp,
+                    tests=tuple(a.test) if a.test else None,
                     kinds=tuple(a.kind) if a.kind else None, simulate_at=a.simulate_at,
                     drive_lowpass=a.drive_lowpass)
     s = fit_campaign(a.campaign, a.out, by=a.by, config=cfg, log=lambda m: print(m, file=sys.stderr),

@@ -148,6 +148,9 @@ def run(wf, targets=("all",), jobs: int = 1, scheduler: str | None = None, force
             todo[n] = why
         else:
             res.cached.append(n)
+    if "ingest" in todo:     # a bad campaign is bad input: one line and exit 2, before any task
+        from ..campaign import load_campaign
+        load_campaign(wf.campaign)
     started = time.strftime("%Y-%m-%dT%H:%M:%S%z")
     stamp = time.strftime("%Y%m%d-%H%M%S")
     res.log_file = Path(wf.out) / "logs" / f"run-{stamp}.log"
