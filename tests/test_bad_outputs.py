@@ -215,3 +215,12 @@ def test_run_on_a_bad_campaign_is_one_line_before_any_task(work, tmp_path, capsy
     wf.write_text('[workflow]\nname = "x"\ncampaign = "camp"\noutput = "run"\n')
     _one_line(capsys, main(["run", str(wf)]), "h-35N-0.5Hz.csv, line 7, column 'displacement'")
     assert not (tmp_path / "run").exists()
+
+
+def test_a_negative_harmonic_amplitude_reaches_its_own_check(work, tmp_path, capsys):
+    """`--harmonic -0.02,0.5` is the option's value, not an unknown option: the amplitude check
+    answers (before: argparse's "expected one argument")."""
+    for value in ("-0.02,0.5", "-.02,0.5"):
+        _one_line(capsys, main(["predict", str(work / "fit"), "--harmonic", value, "--applied", "35",
+                                "--out", str(tmp_path / "p")]), "amplitude (m) must be a finite number > 0")
+    assert not (tmp_path / "p").exists()

@@ -11,9 +11,27 @@ from ..errors import EXIT_BAD_INPUT
 from .options import build_parser
 
 
+#: options whose value may start with "-" without being a number argparse recognises
+#: ("--harmonic -0.02,0.5" would read as a missing value; its own check then says what is wrong)
+_DASH_VALUES = ("--harmonic",)
+
+
+def _join_dash_values(argv: list[str]) -> list[str]:
+    out, i = [], 0
+    while i < len(argv):
+        nxt = argv[i + 1] if i + 1 < len(argv) else ""
+        if argv[i] in _DASH_VALUES and nxt[:1] == "-" and (nxt[1:2].isdigit() or nxt[1:2] == "."):
+            out.append(f"{argv[i]}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(argv[i])
+        i += 1
+    return out
+
+
 def main(argv=None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(_join_dash_values(list(sys.argv[1:] if argv is None else argv)))
     try:
         code = args.func(args)
     except BrokenPipeError:           # output piped into `head` etc.: stop quietly
