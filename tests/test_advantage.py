@@ -147,6 +147,9 @@ def test_write_and_cli(fit_dir, tmp_path, capsys):
     doc = json.loads((out / "advantage.json").read_text())
     assert len(doc["rows"]) == 4 and doc["geometry"]["wrap_deg"] == 670.0
     assert doc["rows"][0]["mu_q2.5"] is not None
+    # provenance: version, the law rows' seed, the fits' seed and configuration
+    assert doc["package_version"] and doc["seed"] == 1
+    assert doc["fit_config"] == json.loads((fit_dir / "summary.json").read_text())["config"]
     # default: written into the fit folder
     write_advantage(fit_dir)
     assert (fit_dir / "advantage.csv").is_file()

@@ -153,3 +153,31 @@ def test_a_relative_default_needs_both_bounds_to_be_overridden():
     for partial in ({"dist": "normal", "mu": 200.0, "sd": 20.0}, {"upper": 400.0}):
         with pytest.raises(InputError, match="relative to fc_fwd"):
             apply_overrides(base, {"fs_fwd": partial})
+
+
+@pytest.mark.slow
+def test_ctrl_c_while_sampling_is_one_line_and_the_rerun_resumes(tmp_path):
+    """SIGINT once the stored run is under way (its first progress line): exit 130, the CLI's one
+    line, no traceback and none of emcee's parameter dump (before: about 90 lines); the same
+    command again resumes from the stored steps."""
+    import signal
+    import subprocess
+    import sys
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "frictionuq.cli", "fit", TWIN, "--out", str(out), "--test",
+           "h-35N-0.5Hz", "--max-steps", "100000"]
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
+    lines = []
+    for line in proc.stderr:
+        lines.append(line)
+        if ": step " in line:           # the stored run has stored steps
+            proc.send_signal(signal.SIGINT)
+            break
+    rest = proc.stderr.read()
+    code = proc.wait(timeout=120)
+    assert code == 130, rest
+    assert "Traceback" not in rest and "emcee" not in rest, rest
+    assert rest.strip().splitlines()[-1] == "frictionuq: interrupted; finished outputs are kept", rest
+    assert len(rest.strip().splitlines()) <= 3, rest
+    again = subprocess.run(cmd[:-1] + ["10"], capture_output=True, text=True, timeout=300)
+    assert "resuming from stored step" in again.stderr, again.stderr

@@ -248,3 +248,64 @@ def test_an_effects_prior_override_applies_only_with_the_effect():
     assert both.fixed["p2"] == 2.0 and "b_ch" in both.names and both.fixed["sigma2"] == 900.0
     with pytest.raises(InputError, match="p2"):
         prepare(FitSpec("s", [test], 267.0, FitConfig(priors={"p2": -1.0})))
+
+
+def test_a_stored_chain_resumes_only_under_the_same_configuration(tmp_path):
+    """fit_campaign into a folder holding a chain: the same configuration (step cap raised)
+    resumes it; another seed or likelihood starts afresh and gives the fresh fit's draws, bit for
+    bit (before, it continued the old chain and wrote the new seed and likelihood beside it)."""
+    import xarray as xr
+    from dataclasses import replace
+    from frictionuq.infer.fit import fit_campaign
+    from frictionuq.infer.sampler import SamplerConfig
+    camp = _two_level_campaign(tmp_path)
+    fixed = {k: v for k, v in published.brfd_params(267.0).items()
+             if k not in ("fc_fwd", "fc_bwd", "sigma0")}
+    samp = SamplerConfig(nwalkers=16, chunk=100, min_steps=100, max_steps=100, burn_rounds=1,
+                         burn_max_rounds=1, burn_steps=50, n_random_starts=1, n_prior_starts=1,
+                         n_global_starts=0, progress=False)
+    cfg = FitConfig(priors=fixed, n_predictive=5, tests=("h267",), sampler=samp)
+
+    def fit(out, c):
+        lines = []
+        fit_campaign(camp, tmp_path / out, by="test", config=c, log=lines.append)
+        return lines, xr.open_dataset(tmp_path / out / "h267" / "posterior.nc", group="posterior")
+
+    fit("a", cfg)
+    more = replace(cfg, sampler=replace(samp, max_steps=200))
+    lines, _ = fit("a", more)
+    assert any("resuming from stored step 100" in m for m in lines), lines
+    for change in (dict(seed=2), dict(likelihood="iid")):
+        other = replace(cfg, **change)
+        import shutil
+        shutil.rmtree(tmp_path / "b", ignore_errors=True)
+        fit("b", cfg)                                           # a chain of the first config
+        lines, resumed = fit("b", other)
+        assert any("made by another configuration" in m for m in lines), (change, lines)
+        assert not any("resuming" in m for m in lines), (change, lines)
+        _, fresh = fit(f"fresh-{list(change)[0]}", other)
+        xr.testing.assert_identical(resumed.drop_attrs(), fresh.drop_attrs())
+
+
+def test_an_iid_fit_records_noise_phi_as_fixed_and_can_converge(tmp_path):
+    """Under the iid likelihood noise_phi is 0 in every draw: it is recorded as fixed, not as a
+    parameter with a NaN R-hat that no run can bring under 1.01 (before, no iid fit was ever
+    reported converged, and summary.json held a bare NaN, which is not JSON)."""
+    from frictionuq.infer.fit import fit_campaign
+    from frictionuq.infer.sampler import SamplerConfig
+    camp = _two_level_campaign(tmp_path)
+    fixed = {k: v for k, v in published.brfd_params(267.0).items() if k not in ("fc_fwd", "fc_bwd")}
+    cfg = FitConfig(priors=fixed, n_predictive=5, tests=("h267",), likelihood="iid",
+                    sampler=SamplerConfig(nwalkers=16, chunk=200, min_steps=200, max_steps=4000,
+                                          burn_rounds=1, burn_max_rounds=2, burn_steps=100,
+                                          n_random_starts=1, n_prior_starts=1, n_global_starts=0,
+                                          progress=False))
+    s = fit_campaign(camp, tmp_path / "out", by="test", config=cfg)
+    entry = s["fits"][0]
+    assert entry["parameters"]["noise_phi[h267]"] == {"fixed": 0.0}
+    assert not any(n.startswith("noise_phi") for n in entry["not_converged_parameters"])
+    assert entry["converged"], entry["not_converged_parameters"]
+
+    def no_constants(c):
+        raise AssertionError(f"summary.json holds {c}")
+    json.loads((tmp_path / "out" / "summary.json").read_text(), parse_constant=no_constants)

@@ -70,6 +70,7 @@ def test_the_stored_run_is_chosen_in_the_sampler_table(tmp_path):
     ("\n[law]\nfamily = 'cubic'\n", "[law].family", "must be one of"),
     ("\n[report]\npublished = 'xyz'\n", "[report].published", "must be one of"),
     ("\n[predict]\nn_draws = 'many'\n", "[predict].n_draws", "integer"),
+    ("\n[predict]\nn_draws = 1\n", "[predict].n_draws", "must be >= 2"),     # a band needs 2
     ("\n[[predict.harmonic]]\namplitude_m = 0.01\napplied = 36\n", "frequency_hz", "missing"),
     ("\n[[predict.harmonic]]\namplitude_m = 0.01\nfrequency_hz = 1\napplied = 36\nphase = 0\n",
      "phase", "unknown key"),

@@ -212,6 +212,8 @@ def write_advantage(fit_dir, out_dir=None) -> pd.DataFrame:
     camp = campaign_of(summary)
     doc = {"package_version": __version__, "environment": environment(),
            "fit_dir": str(fit_dir), "campaign": summary.get("campaign"),
+           # the law rows' draws come from this seed; the fits' own seed and config as fitted
+           "seed": LAW_SEED, "fit_config": summary.get("config"),
            "device": getattr(camp, "device", None), "geometry": getattr(camp, "geometry", None),
            "formula": "C = fc_dir / applied; mu = ln(1 + C damping_radius / drum_radius) / "
                       "radians(wrap_deg) (BRFD Eq. 10 inverted)",

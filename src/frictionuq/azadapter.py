@@ -24,7 +24,12 @@ def build(posterior: dict, *, sample_stats: dict | None = None, log_likelihood: 
                     ("constant_data", constant_data)):
         if g:
             groups[name] = g
-    dt = azb.from_dict(groups, dims=dims or {}, coords=coords or {})
+    import warnings
+    with warnings.catch_warnings():
+        # 16 independent chains of a short (capped) run have fewer draws than chains: expected
+        # here, and said by the fit's convergence record, not by a warning on every run
+        warnings.filterwarnings("ignore", message="Found chain dimension to be longer than draw")
+        dt = azb.from_dict(groups, dims=dims or {}, coords=coords or {})
     for k, v in (attrs or {}).items():
         dt.attrs[k] = v if isinstance(v, (str, int, float)) else json.dumps(v, default=str)
         dt["posterior"].attrs[k] = dt.attrs[k]

@@ -258,7 +258,7 @@ def _entries(c: _Checker, t: dict, key: str, allowed: set, where: str) -> list[d
 def _predict(c: _Checker, t: dict) -> dict:
     w = "[predict]"
     c.unknown(t, SECTIONS["predict"], "predict")
-    out = {"n_draws": c.num(t, "n_draws", w, 400, integer=True, positive=True),
+    out = {"n_draws": c.num(t, "n_draws", w, 400, integer=True, minimum=2),
            "validate": c.strings(t, "validate", w), "harmonic": [], "ground_motion": []}
     names = set()
 

@@ -212,7 +212,8 @@ def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True
     log(f"fit {spec.id}: prior predictive check {'passed' if ppc['passed'] else 'FAILED'} "
         "(measured peak, trough and energy inside the central 98 % of the prior predictive)")
     res = sample(logpost, scales, spec.config.seed, fdir / "chain.h5", spec.config.sampler,
-                 resume=resume, log=lambda m: log(f"fit {spec.id}: {m}"), start=theta0)
+                 resume=resume, log=lambda m: log(f"fit {spec.id}: {m}"), start=theta0,
+                 run_key=run_key(spec, space, records))
     rng = np.random.default_rng([spec.config.seed, 7])
     post = outputs.posterior_draws(logpost, res, rng)
     pred = outputs.predictive(logpost, post, spec.config.n_predictive, rng)
@@ -247,6 +248,24 @@ def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True
     log(f"fit {spec.id}: {'converged' if entry['converged'] else 'NOT converged'} "
         f"after {res.n_steps} steps ({entry['seconds']:.0f} s), rmse {entry['rmse']:.4g} N")
     return entry
+
+
+def run_key(spec: FitSpec, space: Space, records) -> str:
+    """What a stored chain must have been made by to be resumed: the fit's configuration (all
+    but the step cap, which a resumed run may raise, and the progress bar), its space (priors
+    derived from the data included) and the records it is fitted to, hashed."""
+    import hashlib
+    import json
+    cfg = spec.config.to_json()
+    cfg["sampler"] = {k: v for k, v in cfg["sampler"].items() if k not in ("max_steps", "progress")}
+    h = hashlib.sha256(json.dumps(jsonable({"config": cfg, "space": space.to_json(),
+                                            "tests": [t.id for t in spec.tests]}),
+                                  sort_keys=True, default=str).encode())
+    for r in records:
+        for a in (r.t, r.x, r.y):
+            h.update(np.ascontiguousarray(a, float).tobytes())
+        h.update(repr((r.q, r.eps, r.stride)).encode())
+    return h.hexdigest()
 
 
 def fit_campaign(campaign_path, out_dir, by: str = "applied", config: FitConfig | None = None,

@@ -153,11 +153,20 @@ def identifiability(space, post) -> dict:
 def summary_entry(spec, logpost, res, dt, post, pred) -> dict:
     from .fit import CONVERGENCE
     sp = logpost.space
-    tab = azadapter.summary(dt, var_names=list(sp.names) + ["sigma_noise", "noise_phi"])
+    # noise_phi is 0 in every draw under the iid likelihood (or fixed by an override): fixed,
+    # not a parameter whose R-hat (NaN for constant draws) could hold back convergence
+    fixed_noise = {}
+    for per_test in ("noise_phi",):
+        vals = np.asarray(post[per_test], float).reshape(-1, len(logpost.records))
+        if np.all(vals == vals[:1]):
+            fixed_noise.update({f"{per_test}[{r.id}]": float(vals[0, j])
+                                for j, r in enumerate(logpost.records)})
+    names = list(sp.names) + ["sigma_noise"] + ([] if fixed_noise else ["noise_phi"])
+    tab = azadapter.summary(dt, var_names=names)
     params = {}
     for name, row in tab.iterrows():
         params[str(name)] = {k: float(row[k]) for k in tab.columns}
-    for n, v in sp.fixed.items():
+    for n, v in {**sp.fixed, **fixed_noise}.items():
         params[n] = {"fixed": float(v)}
     free = [n for n in params if "fixed" not in params[n]]
     bad = [n for n in free if not (params[n]["r_hat"] <= CONVERGENCE["r_hat_max"]

@@ -84,6 +84,7 @@ import emcee
 import numpy as np
 
 from ..errors import InputError
+from ..interrupts import Interrupts, interrupts
 from .convergence import autocorr_time, check, thinning
 from .likelihood import N_STATS, LogPosterior, UnboundedPosterior
 from .localfit import gauss_newton_cov
@@ -222,7 +223,7 @@ def _moves(cfg: SamplerConfig, proposal=None, stored: bool = False):
 
 
 def burn_in(target, state: np.ndarray, cfg: SamplerConfig, seed: int, rng, log=None,
-            n_out: int | None = None):
+            n_out: int | None = None, intr: Interrupts | None = None):
     """The burn-in phase (module docstring) from walker positions `state` (walkers, ndim) of
     the vectorized emcee target. Rounds of cfg.burn_steps steps, at least cfg.burn_rounds, more
     (up to cfg.burn_max_rounds) while the walkers still climb, some are stuck, or the proposal
@@ -240,7 +241,7 @@ def burn_in(target, state: np.ndarray, cfg: SamplerConfig, seed: int, rng, log=N
     for rnd in range(max(cfg.burn_rounds, cfg.burn_max_rounds)):
         bs = emcee.EnsembleSampler(nw, ndim, target, vectorize=True, moves=_moves(cfg, proposal))
         bs.random_state = np.random.RandomState([seed % (2**32), rnd]).get_state()
-        bs.run_mcmc(state[:nw], cfg.burn_steps, progress=_progress(cfg), skip_initial_state_check=True)
+        run_steps(bs, state[:nw], cfg.burn_steps, progress=_progress(cfg), intr=intr)
         lpc = bs.get_log_prob()
         new = fit_proposal(bs.get_chain(), lpc)
         ratio, shift = proposal_change(proposal.spread if proposal else None, new.spread)
@@ -265,9 +266,16 @@ def burn_in(target, state: np.ndarray, cfg: SamplerConfig, seed: int, rng, log=N
 def sample(logpost: LogPosterior, scales: RecordScales, seed: int,
            backend_path: str | Path | None = None,
            cfg: SamplerConfig | None = None, resume: bool = True, log=None,
-           start: np.ndarray | None = None) -> SampleResult:
+           start: np.ndarray | None = None, run_key: str | None = None) -> SampleResult:
     """Run the full sampler; see the module docstring. `start`: a MAP estimate found elsewhere on
-    the same log-posterior (theta): the multi-start search is skipped, the polish runs from it."""
+    the same log-posterior (theta): the multi-start search is skipped, the polish runs from it.
+    `run_key`: what a stored chain must have been made by to be resumed (storage.open_backend).
+    Ctrl-C stops it between two steps (frictionuq.interrupts), every finished step stored."""
+    with interrupts() as intr:
+        return _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_key, intr)
+
+
+def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_key, intr):
     cfg = cfg or SamplerConfig()
     log = log or (lambda msg: None)
     sp = logpost.space
@@ -278,7 +286,7 @@ def sample(logpost: LogPosterior, scales: RecordScales, seed: int,
     t0 = time.perf_counter()
     rng = np.random.default_rng(seed)
     target = UnboundedPosterior(logpost, stats=True)
-    backend, resumed = open_backend(backend_path, nrun, ndim, resume, log)
+    backend, resumed = open_backend(backend_path, nrun, ndim, resume, log, key=run_key)
 
     theta_map, lp_map, map_info = find_map(logpost, scales, rng, cfg.n_random_starts,
                                            cfg.n_prior_starts, log=log, n_global=cfg.n_global_starts,
@@ -296,7 +304,7 @@ def sample(logpost: LogPosterior, scales: RecordScales, seed: int,
             log("start ball from profiles: half-widths (Gauss-Newton sds) below / above the MAP "
                 + ", ".join(f"{n} {lo:g}/{hi:g}" for n, (lo, hi) in zip(sp.names, sides)))
         state = sp.to_u(initial_ball(theta_map, cov, nw, rng, sp, sides))
-        state, proposal, burn_in_steps = burn_in(target, state, cfg, seed, rng, log,
+        state, proposal, burn_in_steps = burn_in(target, state, cfg, seed, rng, log, intr=intr,
                                                  n_out=nrun if nrun != nw else None)
         state = state[:nrun]
 
@@ -315,7 +323,7 @@ def sample(logpost: LogPosterior, scales: RecordScales, seed: int,
     if backend is not None:
         backend.keep_open()
     try:
-        n_done, converged = _run(sampler, state, cfg, sp, n_done, history, log)
+        n_done, converged = _run(sampler, state, cfg, sp, n_done, history, log, intr)
     finally:
         if backend is not None:
             backend.close()
@@ -323,13 +331,32 @@ def sample(logpost: LogPosterior, scales: RecordScales, seed: int,
                    burn_in_steps, history, map_info["start"])
 
 
-def _run(sampler, state, cfg, sp, n_done, history, log):
+def run_steps(sampler, state, n: int, progress=False, intr: Interrupts | None = None):
+    """sampler.run_mcmc(state, n) (state None: from the last stored step); with `intr`, a Ctrl-C
+    stops it between two steps (KeyboardInterrupt), every finished step in the backend."""
+    if state is None:
+        state = sampler.get_last_sample()
+    intr = intr or Interrupts()
+    intr.check()
+    intr.defer = True
+    try:
+        for state in sampler.sample(state, iterations=n, progress=progress,
+                                    skip_initial_state_check=True):
+            if intr.hit:
+                break
+    finally:
+        intr.defer = False
+    intr.check()
+    return state
+
+
+def _run(sampler, state, cfg, sp, n_done, history, log, intr=None):
     """The stored run in chunks until the convergence criteria or the step cap."""
     prev_tau = None
     converged = False
     while n_done < cfg.max_steps:
         n = min(cfg.chunk, cfg.max_steps - n_done)
-        sampler.run_mcmc(state, n, progress=_progress(cfg), skip_initial_state_check=True)
+        run_steps(sampler, state, n, progress=_progress(cfg), intr=intr)
         state = None
         n_done = int(sampler.iteration)
         if n_done < cfg.min_steps:

@@ -53,11 +53,14 @@ COORDS = ("frictionuq unbounded logit-of-box coordinates v2 (independence propos
           "blobs v3: per-record log-likelihood, then per-record residual statistics")
 
 
-def open_backend(backend_path, nw, ndim, resume, log=None):
+def open_backend(backend_path, nw, ndim, resume, log=None, key: str | None = None):
     """(backend, steps already stored). A stored chain is resumed only when it was written in the
-    same coordinates (attribute `coordinates` of the backend's group), with the same shape, and
-    every stored array reads back: a process killed in the middle of an HDF5 write can leave a
-    file whose metadata opens but whose data does not, and such a file is started afresh."""
+    same coordinates (attribute `coordinates` of the backend's group), with the same shape, by
+    the same run (attribute `run_key` equal to `key`, when one is given: the fit's configuration,
+    priors and data; a chain of another seed or likelihood would otherwise be continued under
+    the new one's name), and every stored array reads back: a process killed in the middle of an
+    HDF5 write can leave a file whose metadata opens but whose data does not, and such a file is
+    started afresh."""
     if backend_path is None:
         return None, 0
     backend_path = Path(backend_path)
@@ -67,7 +70,12 @@ def open_backend(backend_path, nw, ndim, resume, log=None):
             be = OpenHDFBackend(str(backend_path))
             with be.open() as f:
                 coords = f[be.name].attrs.get("coordinates", "")
-            if be.initialized and be.shape == (nw, ndim) and be.iteration > 0 and coords == COORDS:
+                stored_key = f[be.name].attrs.get("run_key", "")
+            if key is not None and stored_key != key and be.iteration > 0:
+                if log is not None:
+                    log(f"stored chain {backend_path.name} was made by another configuration or "
+                        "data (seed, likelihood, priors, sampler, records): starting afresh")
+            elif be.initialized and be.shape == (nw, ndim) and be.iteration > 0 and coords == COORDS:
                 be.get_chain(), be.get_log_prob(), be.get_blobs(), be.get_last_sample()
                 load_proposal(be)
                 return be, int(be.iteration)
@@ -81,6 +89,8 @@ def open_backend(backend_path, nw, ndim, resume, log=None):
     be.reset(nw, ndim)
     with be.open("a") as f:
         f[be.name].attrs["coordinates"] = COORDS
+        if key is not None:
+            f[be.name].attrs["run_key"] = key
     return be, 0
 
 

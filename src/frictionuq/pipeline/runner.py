@@ -22,6 +22,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..interrupts import interrupts
 from . import cache
 from .plan import closure, plan
 from .tasks import execute, task_log_path
@@ -180,52 +181,54 @@ def run(wf, targets=("all",), jobs: int = 1, scheduler: str | None = None, force
             res.failed[n] = out["error"]
             disp.line(f"FAILED  {n}: {out['error']}")
 
-    try:
-        while pending or running:
-            progressed = False
-            for n in list(pending):
-                deps = tasks[n].deps
-                bad = [d for d in deps if d in res.failed or d in res.skipped]
-                if bad:
+    with interrupts() as intr:
+        try:
+            while pending or running:
+                intr.check()      # a Ctrl-C whose KeyboardInterrupt was swallowed (in a finaliser)
+                progressed = False
+                for n in list(pending):
+                    deps = tasks[n].deps
+                    bad = [d for d in deps if d in res.failed or d in res.skipped]
+                    if bad:
+                        pending.remove(n)
+                        res.skipped[n] = f"dependency {bad[0]} did not finish"
+                        statuses[n] = {"status": "skipped", "error": res.skipped[n]}
+                        disp.line(f"skipped {n}: {res.skipped[n]}")
+                        progressed = True
+                        continue
+                    if any(d in pending or d in running for d in deps):
+                        continue
+                    task = tasks[n]
                     pending.remove(n)
-                    res.skipped[n] = f"dependency {bad[0]} did not finish"
-                    statuses[n] = {"status": "skipped", "error": res.skipped[n]}
-                    disp.line(f"skipped {n}: {res.skipped[n]}")
                     progressed = True
-                    continue
-                if any(d in pending or d in running for d in deps):
-                    continue
-                task = tasks[n]
-                pending.remove(n)
-                progressed = True
-                disp.line(f"{'queued ' if task.heavy and not pool.inline else 'start  '} {n} ({todo[n]})")
-                if task.heavy and not pool.inline:
-                    running[n] = pool.submit(wf, task)
-                else:
-                    if n == "report":
-                        write_run(wf, statuses, started)
-                    finish(n, execute(wf, task, pool.threads if task.heavy else None))
-            for n, fut in list(running.items()):
-                if fut.done():
-                    del running[n]
-                    try:
-                        out = fut.result()
-                    except Exception as e:      # a worker died (killed, out of memory)
-                        out = {"ok": False, "seconds": 0.0,
-                               "error": f"worker failed: {type(e).__name__}: {e}"}
-                    finish(n, out)
-                    progressed = True
-            if running and not progressed:
-                done = len(res.ran) + len(res.failed)
-                parts = [f"{r}: {_last_line(task_log_path(wf.out, r))}" for r in running]
-                disp.status(f"[{done}/{len(todo)} done] " + " | ".join(parts))
-                time.sleep(0.25)
-    except KeyboardInterrupt:
-        disp.line("interrupted: finished tasks are kept; the next run resumes the rest")
-        pool.close(cancel=True)
-        write_run(wf, statuses, started)
-        disp.close()
-        raise
+                    disp.line(f"{'queued ' if task.heavy and not pool.inline else 'start  '} {n} ({todo[n]})")
+                    if task.heavy and not pool.inline:
+                        running[n] = pool.submit(wf, task)
+                    else:
+                        if n == "report":
+                            write_run(wf, statuses, started)
+                        finish(n, execute(wf, task, pool.threads if task.heavy else None))
+                for n, fut in list(running.items()):
+                    if fut.done():
+                        del running[n]
+                        try:
+                            out = fut.result()
+                        except Exception as e:      # a worker died (killed, out of memory)
+                            out = {"ok": False, "seconds": 0.0,
+                                   "error": f"worker failed: {type(e).__name__}: {e}"}
+                        finish(n, out)
+                        progressed = True
+                if running and not progressed:
+                    done = len(res.ran) + len(res.failed)
+                    parts = [f"{r}: {_last_line(task_log_path(wf.out, r))}" for r in running]
+                    disp.status(f"[{done}/{len(todo)} done] " + " | ".join(parts))
+                    time.sleep(0.25)
+        except KeyboardInterrupt:
+            disp.line("interrupted: finished tasks are kept; the next run resumes the rest")
+            pool.close(cancel=True)
+            write_run(wf, statuses, started)
+            disp.close()
+            raise
     pool.close()
     write_run(wf, statuses, started)
     res.seconds = time.perf_counter() - t0
@@ -264,4 +267,7 @@ def clean(wf) -> list[Path]:
         elif p.is_file():
             p.unlink()
             gone.append(p)
+    rep = Path(wf.report_dir)
+    if rep.is_dir() and not any(rep.iterdir()):      # the report's folder, left empty
+        rep.rmdir()
     return gone

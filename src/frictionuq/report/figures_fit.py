@@ -73,10 +73,15 @@ def corner_figure(draws: dict[str, np.ndarray], title: str) -> bytes:
         ranges.append((lo, hi))
     size = min(WIDTH, max(5.0, 0.85 * k))
     fig = pyplot.figure(figsize=(size, size))
-    fig = corner.corner(X, labels=labels, range=ranges, fig=fig, bins=20, smooth=None,
-                        quantiles=[0.025, 0.5, 0.975], show_titles=False,
-                        label_kwargs={"fontsize": 7}, plot_datapoints=True,
-                        data_kwargs={"alpha": 0.15, "ms": 1.0}, max_n_ticks=2, labelpad=0.12)
+    import logging
+    logging.disable(logging.WARNING)   # corner's "Too few points to create valid contours" (a
+    try:                               # short run's panels show their points without contours)
+        fig = corner.corner(X, labels=labels, range=ranges, fig=fig, bins=20, smooth=None,
+                            quantiles=[0.025, 0.5, 0.975], show_titles=False,
+                            label_kwargs={"fontsize": 7}, plot_datapoints=True,
+                            data_kwargs={"alpha": 0.15, "ms": 1.0}, max_n_ticks=2, labelpad=0.12)
+    finally:
+        logging.disable(logging.NOTSET)
     for ax in fig.axes:
         ax.tick_params(labelsize=6)
     fig.subplots_adjust(top=0.92, bottom=0.1, left=0.1, right=0.98)
