@@ -289,3 +289,20 @@ def test_refuses_incomplete_fit_folders_and_oversized_requests(fit_dir, tmp_path
     n = 100_001
     with pytest.raises(InputError, match="too large"):
         predict(fit_dir, 267.0, np.arange(n, dtype=float), np.zeros(n), n_draws=400)
+
+
+def test_an_input_beyond_the_fitted_records_is_flagged(fit_dir, tmp_path, capsys):
+    """prediction.json's fitted_range says when the input's stroke or peak speed exceeds the
+    fitted records' by more than BEYOND_FACTOR, and the command line notes it; a harmonic inside
+    the fitted range is not flagged."""
+    from frictionuq.predict import BEYOND_FACTOR
+    inside = write_prediction(fit_dir, tmp_path / "in", harmonic=(AMP, FREQ), applied=0.267, n_draws=20)
+    r = inside["fitted_range"]
+    assert r["beyond"] == [] and r["stroke_m"] == pytest.approx(AMP, rel=1e-3)
+    assert r["fitted_stroke_m"] >= AMP * 0.99 and r["factor"] == BEYOND_FACTOR
+    assert main(["predict", str(fit_dir), "--harmonic", f"{4 * AMP},{FREQ}", "--applied", "0.267",
+                 "--out", str(tmp_path / "far"), "--draws", "20"]) == 0
+    err = capsys.readouterr().err
+    assert "note: the input goes beyond the fitted records (stroke, peak speed)" in err, err
+    doc = json.loads((tmp_path / "far" / "prediction.json").read_text())
+    assert doc["fitted_range"]["beyond"] == ["stroke", "peak speed"]

@@ -238,6 +238,30 @@ def fit_drive_lowpass(summary: dict) -> float | None:
 # ---------------------------------------------------------------- files
 
 
+#: an input whose stroke or peak speed exceeds the fitted records' by more than this factor is
+#: flagged (prediction.json "fitted_range", and a note on the command line): the model's
+#: parameters, v_s and sigma2 above all, are then extrapolated beyond what the data showed
+BEYOND_FACTOR = 1.5
+
+
+def fitted_range(fit_dir, fit_ids, t, x) -> dict:
+    """The input's stroke (largest |x - median x|, m) and peak speed (m/s) beside the largest of
+    the records of the fits its draws come from (fit.json's scales), and which of them go
+    beyond BEYOND_FACTOR times those."""
+    from .fitdir import read_json
+    amp, vmax = 0.0, 0.0
+    for fid in fit_ids:
+        sc = read_json(Path(fit_dir) / fid / "fit.json", f"record of fit {fid}").get("scales") or {}
+        amp, vmax = max(amp, float(sc.get("amp", 0.0))), max(vmax, float(sc.get("v_max", 0.0)))
+    x = np.asarray(x, float)
+    stroke = float(np.max(np.abs(x - np.median(x))))
+    speed = float(np.max(np.abs(np.gradient(x, np.asarray(t, float))))) if x.size > 1 else 0.0
+    beyond = [name for name, v, ref in (("stroke", stroke, amp), ("peak speed", speed, vmax))
+              if ref > 0 and v > BEYOND_FACTOR * ref]
+    return {"stroke_m": stroke, "fitted_stroke_m": amp, "peak_speed_m_s": speed,
+            "fitted_peak_speed_m_s": vmax, "beyond": beyond, "factor": BEYOND_FACTOR}
+
+
 def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied: float,
                      applied_unit: str | None = None, n_draws: int = 400, seed: int = 1,
                      include_offset: bool = False) -> dict:
@@ -295,6 +319,9 @@ def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied
                    summary=summary, drive_lowpass=lowpass_mult)
     meta = {"package_version": __version__, "environment": environment(),
             "fit_dir": str(fit_dir), "campaign": summary.get("campaign"),
+            "fitted_range": fitted_range(fit_dir, pred.draws.fits if pred.draws.source !=
+                                         "force-dependence law" else
+                                         [f["id"] for f in summary["fits"]], t, x),
             "applied": {"si": a_si, "si_unit": U.si_unit_of_applied(unit), "value": value,
                         "unit": unit, "unit_source": unit_src},
             "draws_source": pred.draws.source, "fits": pred.draws.fits, "model": pred.draws.model,

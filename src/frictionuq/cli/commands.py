@@ -90,6 +90,12 @@ def _cmd_predict(a):
     print(f"wrote {a.out}: bands.csv, cycles.csv, prediction.json at applied {ap['value']:g} "
           f"{ap['unit']} ({m['draws_source']}, {m['n_draws']} draws; time s, displacement m, "
           "force N, energy J)")
+    r = m["fitted_range"]
+    if r["beyond"]:
+        print(f"note: the input goes beyond the fitted records ({', '.join(r['beyond'])}): stroke "
+              f"{r['stroke_m']:.4g} m against {r['fitted_stroke_m']:.4g} m, peak speed "
+              f"{r['peak_speed_m_s']:.4g} m/s against {r['fitted_peak_speed_m_s']:.4g} m/s; the "
+              "bands extrapolate the model there", file=sys.stderr)
 
 
 def _cmd_advantage(a):
