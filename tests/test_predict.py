@@ -306,3 +306,17 @@ def test_an_input_beyond_the_fitted_records_is_flagged(fit_dir, tmp_path, capsys
     assert "note: the input goes beyond the fitted records (stroke, peak speed)" in err, err
     doc = json.loads((tmp_path / "far" / "prediction.json").read_text())
     assert doc["fitted_range"]["beyond"] == ["stroke", "peak speed"]
+
+
+def test_results_from_unconverged_fits_say_so(fit_dir, tmp_path, capsys):
+    """The fixture's fit is tiny and not converged: prediction.json and validation.json list it
+    under not_converged_fits and the command line notes it (before, nothing outside the report
+    said so)."""
+    summary = json.loads((fit_dir / "summary.json").read_text())
+    ids = [f["id"] for f in summary["fits"] if not f["converged"]]
+    assert ids, "the fixture's fit was expected not to converge"
+    assert main(["predict", str(fit_dir), "--harmonic", f"{AMP},{FREQ}", "--applied", "0.267",
+                 "--out", str(tmp_path / "p"), "--draws", "20"]) == 0
+    assert "note: the bands are drawn from fit(s) not converged" in capsys.readouterr().err
+    doc = json.loads((tmp_path / "p" / "prediction.json").read_text())
+    assert set(doc["not_converged_fits"]) <= set(ids) and doc["not_converged_fits"]

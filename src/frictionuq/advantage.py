@@ -34,7 +34,7 @@ import pandas as pd
 from . import atomic, published
 from .environment import environment
 from .errors import InputError
-from .fitdir import campaign_applied_unit, campaign_of, load_posterior, load_summary
+from .fitdir import campaign_applied_unit, campaign_of, load_posterior, load_summary, not_converged
 
 COLUMNS = ["fit", "source", "applied", "applied_unit", "applied_display", "direction",
            "fc_mean", "C_mean", "C_q2.5", "C_q97.5", "C_unit", "mu_mean", "mu_q2.5", "mu_q97.5",
@@ -192,8 +192,8 @@ def format_table(df: pd.DataFrame) -> str:
             + (" *" if d["at_bounds"] > AT_BOUNDS_FLAG else ""))
     if any(d["at_bounds"] > AT_BOUNDS_FLAG for d in df.to_dict(orient="records")):
         lines.append(f"* more than {AT_BOUNDS_FLAG:.1%} of the draws sit at the prior box's bounds: "
-                     "the interval is set by the prior, not the data (a law from few or "
-                     "scattered levels)")
+                     "the interval is set by the prior, not the data (on a law row: few or "
+                     "scattered levels; on a posterior row: a fit the data do not pin down)")
     lines.append("C = fc / applied (BRFD Eq. 10, fc of the direction); mu = ln(1 + C r_b / r) / phi; "
                  "intervals: 2.5-97.5 % of the posterior (law rows: of the law's draws)")
     return "\n".join(lines)
@@ -214,6 +214,7 @@ def write_advantage(fit_dir, out_dir=None) -> pd.DataFrame:
            "fit_dir": str(fit_dir), "campaign": summary.get("campaign"),
            # the law rows' draws come from this seed; the fits' own seed and config as fitted
            "seed": LAW_SEED, "fit_config": summary.get("config"),
+           "not_converged_fits": not_converged(summary),
            "device": getattr(camp, "device", None), "geometry": getattr(camp, "geometry", None),
            "formula": "C = fc_dir / applied; mu = ln(1 + C damping_radius / drum_radius) / "
                       "radians(wrap_deg) (BRFD Eq. 10 inverted)",

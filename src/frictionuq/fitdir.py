@@ -74,6 +74,14 @@ def campaign_applied_unit(fit_dir, summary: dict) -> tuple[str, str]:
     return "N", "not recorded (campaign folder unavailable): SI assumed"
 
 
+def not_converged(summary: dict, ids=None) -> list[str]:
+    """The fits (of `ids`, or all) the summary marks "converged": false: results drawn from them
+    are indicative only, which predict, validate and advantage record and say."""
+    want = None if ids is None else set(ids)
+    return [f["id"] for f in summary["fits"]
+            if (want is None or f["id"] in want) and not f.get("converged", False)]
+
+
 def fitted_levels(summary: dict) -> list[float]:
     return sorted({float(f["applied"]) for f in summary["fits"] if f.get("applied") is not None})
 

@@ -42,7 +42,7 @@ from . import atomic, params as P
 from .environment import environment
 from .errors import InputError, check_draws, check_seed
 from .draws import Draws, choose_draws
-from .fitdir import campaign_applied_unit, load_summary
+from .fitdir import campaign_applied_unit, load_summary, not_converged
 
 QUANTILES = (2.5, 25.0, 50.0, 75.0, 97.5)
 HARMONIC_CYCLES = 3
@@ -324,7 +324,10 @@ def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied
                                          [f["id"] for f in summary["fits"]], t, x),
             "applied": {"si": a_si, "si_unit": U.si_unit_of_applied(unit), "value": value,
                         "unit": unit, "unit_source": unit_src},
-            "draws_source": pred.draws.source, "fits": pred.draws.fits, "model": pred.draws.model,
+            "draws_source": pred.draws.source, "fits": pred.draws.fits,
+            "not_converged_fits": not_converged(summary, None if pred.draws.source ==
+                                                "force-dependence law" else pred.draws.fits),
+            "model": pred.draws.model,
             "effects": list(pred.draws.effects), "n_draws": int(n_draws), "seed": int(seed),
             "input": inp, "include_offset": bool(include_offset),
             "offset": "force_offset (load-cell zero) excluded from force_model_*; "

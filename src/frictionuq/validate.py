@@ -64,7 +64,7 @@ def validate(fit_dir, campaign_path, test_ids, out_dir, *, n_draws: int = 400, s
     """Predict each held-out test (ids) of a campaign from a fit folder and score it."""
     from . import __version__
     from .campaign import load_campaign
-    from .fitdir import load_summary
+    from .fitdir import load_summary, not_converged
     from .noise import default_eps
     from .predict import fit_drive_lowpass, predict
     log = log or (lambda m: None)
@@ -104,6 +104,7 @@ def validate(fit_dir, campaign_path, test_ids, out_dir, *, n_draws: int = 400, s
         doc = {"package_version": __version__, "environment": environment(),
                "fit_dir": str(fit_dir), "campaign": camp.name,
                "campaign_path": str(campaign_path), "seed": seed, "n_draws": n_draws,
+               "not_converged_fits": not_converged(summary),
                "units": "force N, applied_si N or Pa, eps m; coverage fractions of samples; nrmse = rmse / "
                         "peak-to-peak measured force",
                "tests": results}

@@ -51,6 +51,9 @@ def _cmd_law(a):
           f"(other parameters shared), {len(doc['levels'])} applied forces")
     for fam, c in doc["comparison"].items():
         print(f"  {fam:<11} held-out ELPD {c['elpd']:9.2f} nats (SE {c['se']:.2f})")
+    if not doc["comparison"]:
+        print(f"  families not compared: leave-one-level-out needs 3 or more levels, here "
+              f"{len(doc['levels'])}")
 
 
 def _cmd_validate(a):
@@ -61,7 +64,11 @@ def _cmd_validate(a):
     print(f"{'test':<34}{'cover95':>8}{'cover50':>8}{'RMSE N':>10}{'NRMSE':>8}  draws from")
     for r in doc["tests"]:      # the draws' source last, whole (it names the fit or the law)
         print(f"{r['test']:<34}{r['coverage95']:8.3f}{r['coverage50']:8.3f}"
-              f"{r['rmse_N']:10.4g}{r['nrmse']:8.4f}  {r['draws_source']}")
+              f"{r['rmse_N']:10.4g}{r['nrmse']:8.4f}  {r['draws_source']}"
+              + ("" if r["held_out"] else "  (NOT held out: the fit saw this test)"))
+    print("cover95/cover50: fraction of measured samples inside the 95 %/50 % band; NRMSE: RMSE of "
+          "the median / the measured force's peak to peak")
+    _note_not_converged(doc["not_converged_fits"], "the predictions are drawn")
 
 
 def _cmd_table(a):
@@ -90,6 +97,7 @@ def _cmd_predict(a):
     print(f"wrote {a.out}: bands.csv, cycles.csv, prediction.json at applied {ap['value']:g} "
           f"{ap['unit']} ({m['draws_source']}, {m['n_draws']} draws; time s, displacement m, "
           "force N, energy J)")
+    _note_not_converged(m["not_converged_fits"], "the bands are drawn")
     r = m["fitted_range"]
     if r["beyond"]:
         print(f"note: the input goes beyond the fitted records ({', '.join(r['beyond'])}): stroke "
@@ -103,6 +111,8 @@ def _cmd_advantage(a):
     df = write_advantage(a.fit_dir, a.out)
     print(format_table(df))
     print(f"wrote {a.out or a.fit_dir}/advantage.csv and advantage.json")
+    from ..fitdir import load_summary, not_converged
+    _note_not_converged(not_converged(load_summary(a.fit_dir)), "C and mu are drawn")
 
 
 def _cmd_compare(a):
@@ -202,6 +212,13 @@ def _cmd_clean(a):
     wf = load_workflow(a.workflow)
     gone = clean(wf)
     print(f"removed {', '.join(map(str, gone))}" if gone else f"nothing to remove for {wf.name}")
+
+
+def _note_not_converged(ids, what: str) -> None:
+    """One line on stderr when results come from fits marked not converged."""
+    if ids:
+        print(f"note: {what} from fit(s) not converged (R-hat > 1.01 or ESS < 400 for some "
+              f"parameter): {', '.join(ids)}; indicative only", file=sys.stderr)
 
 
 def _sampler_config(a):

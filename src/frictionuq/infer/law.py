@@ -244,6 +244,9 @@ def fit_law(fit_dir, family: str = "auto", seed: int = 1, compare: bool = True, 
         chosen = max(finite, key=finite.get) if finite else "linear"
     else:
         chosen = family
+    if not comparison:
+        log(f"law: {len(levels)} levels: no held-out comparison of the families (leave one level "
+            f"out needs 3 or more); {chosen} {'by default' if family == 'auto' else 'as asked'}")
     laws = {}
     for j, n in enumerate(names):
         a, m, s, ls = stats[n]
