@@ -86,4 +86,4 @@ def campaign_table(path, published: str = "none", eps="auto") -> str:
                 "parameters are the paper's own prototype tests; calibrating them to these records "
                 "is the next stage (Bayesian calibration).")
     with pd.option_context("display.width", 250, "display.max_columns", 40, "display.max_rows", 500):
-        return head + "\n" + df.to_string(index=False, float_format=lambda v: f"{v:.4g}") + note
+        return head + "\n" + df.to_string(index=False, na_rep="-", float_format=lambda v: f"{v:.4g}") + note
