@@ -112,3 +112,20 @@ def test_a_dependency_recomputed_in_another_run_makes_its_dependents_stale(tmp_p
     (tmp_path / "a.txt").write_text("posterior 3")
     cache.record(tmp_path, up, 1.0)
     assert cache.state(tmp_path, fit)[0]
+
+
+def test_status_names_an_interrupted_task(tmp_path):
+    """A fit whose own folder holds the task key of an unfinished run (and no cache entry):
+    status says it resumes, not "never run"; another key is "never run" as before."""
+    from frictionuq.pipeline.runner import plan_status
+    wf = load_workflow(ROOT / "workflows" / "quick.toml")
+    wf.out = tmp_path / "run"
+    task = plan(wf)["fit:applied-36lb"]
+    d = wf.out / "fit" / "applied-36lb"
+    d.mkdir(parents=True)
+    (d / cache.KEY_FILE).write_text(task.key)
+    why = {n: w for n, _, w in plan_status(wf, ["fit:applied-36lb"])}
+    assert why["fit:applied-36lb"] == "interrupted: the next run resumes it from its stored state"
+    (d / cache.KEY_FILE).write_text("another key")
+    why = {n: w for n, _, w in plan_status(wf, ["fit:applied-36lb"])}
+    assert why["fit:applied-36lb"] == "never run (no cache entry)"

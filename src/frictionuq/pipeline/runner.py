@@ -25,7 +25,7 @@ from pathlib import Path
 from ..interrupts import interrupts
 from . import cache
 from .plan import closure, plan
-from .tasks import execute, task_log_path
+from .tasks import execute, interrupted, task_log_path
 
 
 @dataclass
@@ -49,6 +49,8 @@ def plan_status(wf, targets=("all",), force: bool = False) -> list[tuple[str, bo
     for n in closure(tasks, targets):
         t = tasks[n]
         ok, why = cache.state(wf.out, t)
+        if not ok and why.startswith("never run") and interrupted(wf.out, t):
+            why = "interrupted: the next run resumes it from its stored state"
         upstream = [d for d in (t.deps if t.key_deps is None else t.key_deps) if d in runs]
         if ok and upstream:         # make-like: what a rerun task feeds is rerun too
             ok, why = False, f"dependency {upstream[0]} reruns"

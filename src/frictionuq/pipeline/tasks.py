@@ -80,10 +80,29 @@ def _ingest(wf, task, log):
     log(f"ingested {len(m['tests'])} tests of {m['name']!r}")
 
 
+def own_dir(run_dir, task) -> Path | None:
+    """The folder of its own a task keeps between runs (where an interrupted run resumes), or
+    None for a task without one."""
+    if task.stage == "fit" and "fit_id" in task.args:
+        return Path(run_dir) / "fit" / task.args["fit_id"]
+    if task.stage == "compare" and "level" in task.args:
+        return Path(run_dir) / "compare" / task.args["level"] / task.args["model"]
+    if task.name == "discrepancy":
+        return Path(run_dir) / "discrepancy"
+    return None
+
+
+def interrupted(run_dir, task) -> bool:
+    """Whether the task's own folder holds an unfinished run of the same task key."""
+    d = own_dir(run_dir, task)
+    kf = d / cache.KEY_FILE if d is not None else None
+    return kf is not None and kf.is_file() and kf.read_text() == task.key
+
+
 def _fit(wf, task, log):
     from ..infer.fit import FitSpec, run_fit
     camp, tests = _campaign(wf.out, task.args["tests"])
-    d = Path(wf.out) / "fit" / task.args["fit_id"]
+    d = own_dir(wf.out, task)
     _fresh_dir(d, task.key, log)
     spec = FitSpec(task.args["fit_id"], tests, None if wf.config["fit"]["by"] == "test" and
                    len({t.applied for t in tests}) > 1 else tests[0].applied, wf.fit_config())
@@ -142,7 +161,7 @@ def _compare(wf, task, log):
     from ..infer.fit import jsonable
     _, tests = _campaign(wf.out, task.args["tests"])
     m = task.args["model"]
-    d = Path(wf.out) / "compare" / task.args["level"] / m
+    d = own_dir(wf.out, task)
     _fresh_dir(d, task.key, log)
     lv = compare_level(tests, {m: wf.fit_config(compare_model=m)}, wf.seed, log=log,
                        work_dir=d / "chains")
@@ -168,7 +187,7 @@ def _compare_summary(wf, task, log):
 def _discrepancy(wf, task, log):
     from dataclasses import replace
     from ..discrepancy.discover import discover
-    d = Path(wf.out) / "discrepancy"
+    d = own_dir(wf.out, task)
     _fresh_dir(d, task.key, log)
     cfg = replace(wf.fit_config(), tests=tuple(task.args["tests"]), kinds=None)
     doc = discover(Path(wf.out) / "ingest", d, cfg, seed=wf.seed,
