@@ -276,4 +276,3 @@ def prior_options(texts) -> dict:
             raise InputError(f"--prior {t!r}: {name} is given twice")
         out[name] = spec
     return out
-
