@@ -224,3 +224,15 @@ def test_a_negative_harmonic_amplitude_reaches_its_own_check(work, tmp_path, cap
         _one_line(capsys, main(["predict", str(work / "fit"), "--harmonic", value, "--applied", "35",
                                 "--out", str(tmp_path / "p")]), "amplitude (m) must be a finite number > 0")
     assert not (tmp_path / "p").exists()
+
+
+def test_fit_into_its_campaign_and_a_test_validated_twice_are_refused(work, capsys):
+    camp = work / "camp"
+    before = sorted(p.name for p in camp.iterdir())
+    _one_line(capsys, main(["fit", str(camp), "--out", str(camp), "--max-steps", "5"]),
+              "must differ from the campaign folder")
+    assert sorted(p.name for p in camp.iterdir()) == before
+    _one_line(capsys, main(["validate", str(work / "fit"), str(camp), "--test", "h-35N-0.05Hz",
+                            "--test", "h-35N-0.05Hz", "--out", str(work / "v2")]),
+              "--test h-35N-0.05Hz: given twice")
+    assert not (work / "v2").exists()

@@ -8,13 +8,14 @@ import contextlib
 
 
 class Interrupts:
-    """Ctrl-C (SIGINT) during a run. While `defer` is set (emcee's steps) it is only noted, and
-    the sampler (infer.sampler.run_steps) raises KeyboardInterrupt between two steps: raised
-    inside the log-probability it went through emcee's wrapper, which prints the walkers' whole
-    parameter arrays and a traceback (about 90 lines) before the CLI's one-line "interrupted".
-    Otherwise it raises at once and is noted too, and `check()` raises it again at the next step,
-    chunk or task: one that lands in a finaliser is swallowed by Python ("Exception ignored in
-    ...": seen between two chunks, and the fit ran on to the end; and in `run`, 1 time in 4)."""
+    """Ctrl-C (SIGINT) during a run. While `defer` is set (the sampler sets it once its MAP
+    search is done) it is only noted, and the sampler (infer.sampler.run_steps) raises
+    KeyboardInterrupt between two steps or chunks: raised inside the log-probability it went
+    through emcee's wrapper, which prints the walkers' whole parameter arrays and a traceback
+    (about 90 lines) before the CLI's one-line "interrupted", and raised between chunks it could
+    land in a finaliser, where Python prints "Exception ignored in ..." with a traceback and goes
+    on (the fit ran to the end). Otherwise it raises at once and is noted too, and `check()`
+    raises it again at the next step, chunk or task (in `run` one was swallowed 1 time in 4)."""
 
     def __init__(self):
         self.hit = False

@@ -77,6 +77,9 @@ def validate(fit_dir, campaign_path, test_ids, out_dir, *, n_draws: int = 400, s
     unknown = [i for i in test_ids if i not in by_id]
     if unknown:
         raise InputError(f"{campaign_path}: no test {unknown[0]!r}; tests: {', '.join(by_id)}")
+    twice = sorted({i for i in test_ids if list(test_ids).count(i) > 1})
+    if twice:
+        raise InputError(f"--test {twice[0]}: given twice (each held-out test is scored once)")
     out = Path(out_dir)
     # the folder is written whole (a bad test later in the list leaves nothing half-written)
     atomic.check_replaceable(fit_dir, out, "validation.json", "fit", "a validation folder")

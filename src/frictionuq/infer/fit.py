@@ -282,6 +282,9 @@ def fit_campaign(campaign_path, out_dir, by: str = "applied", config: FitConfig 
     jobs = Workers(jobs).jobs               # refused here, before any work, if not an int >= 1
     atomic.writable_parent(Path(out_dir) / "summary.json", create=False)   # out: a folder, or none yet
     camp = load_campaign(campaign_path)
+    if Path(out_dir).resolve() == Path(campaign_path).resolve():
+        raise InputError(f"--out {out_dir}: must differ from the campaign folder (the fits would "
+                         "be written among its records)")
     specs = plan(camp, by, config)
     for s in specs:               # every fit's priors checked before the first fit starts
         build_space(s, record_scales([t.record for t in s.tests]))

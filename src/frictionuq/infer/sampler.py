@@ -292,6 +292,9 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
                                            cfg.n_prior_starts, log=log, n_global=cfg.n_global_starts,
                                            start=start)
     log(f"MAP log-posterior {lp_map:.6g}")
+    # from here on a Ctrl-C is only noted and raised at the next step or chunk (run_steps): one
+    # raised between chunks could land in a finaliser, where Python prints it and goes on
+    intr.defer = True
     burn_in_steps = 0
     state = proposal = None
     if resumed:
@@ -327,6 +330,7 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
     finally:
         if backend is not None:
             backend.close()
+    intr.check()              # one noted after the last chunk: the chain is stored, resumable
     return _result(sampler, cfg, sp, n_done, converged, theta_map, lp_map, logpost, t0,
                    burn_in_steps, history, map_info["start"])
 
@@ -338,14 +342,14 @@ def run_steps(sampler, state, n: int, progress=False, intr: Interrupts | None = 
         state = sampler.get_last_sample()
     intr = intr or Interrupts()
     intr.check()
-    intr.defer = True
+    before, intr.defer = intr.defer, True
     try:
         for state in sampler.sample(state, iterations=n, progress=progress,
                                     skip_initial_state_check=True):
             if intr.hit:
                 break
     finally:
-        intr.defer = False
+        intr.defer = before
     intr.check()
     return state
 
