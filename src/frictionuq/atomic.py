@@ -17,6 +17,12 @@ def _umask() -> int:
     return old
 
 
+def _cannot_write(path, e: OSError, where):
+    """The one-line refusal of an OSError met while making `path` (InputError)."""
+    from .errors import InputError
+    return InputError(f"cannot write {path}: {e.strerror or e} ({e.filename or where})")
+
+
 def writable_parent(path, create: bool = True) -> Path:
     """Make the folder `path` is to be written in, or refuse with one line naming `path`: a
     parent that is a file, or one that cannot be created (InputError, not an OSError with the
@@ -34,7 +40,7 @@ def writable_parent(path, create: bool = True) -> Path:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as e:
-        raise InputError(f"cannot write {path}: {e.strerror or e} ({e.filename or path.parent})") from None
+        raise _cannot_write(path, e, path.parent) from None
     return path.parent
 
 
@@ -50,7 +56,7 @@ def replacing(path):
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     except OSError as e:
-        raise InputError(f"cannot write {path}: {e.strerror or e} ({path.parent})") from None
+        raise _cannot_write(path, e, path.parent) from None
     os.close(fd)
     try:
         os.chmod(tmp, 0o666 & ~_umask())     # mkstemp makes 0600; give the usual mode
@@ -98,7 +104,7 @@ def output_dir(path):
     try:
         tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
     except OSError as e:
-        raise InputError(f"cannot write {path}: {e.strerror or e} ({path.parent})") from None
+        raise _cannot_write(path, e, path.parent) from None
     os.chmod(tmp, 0o777 & ~_umask())          # mkdtemp makes 0700
     try:
         yield tmp

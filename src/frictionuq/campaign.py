@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from . import units as U
-from .errors import InputError
+from .errors import InputError, not_a_file
 from .records import check_time, read_arts_json, read_csv
 
 KINDS = ("harmonic", "earthquake", "other")
@@ -235,9 +235,8 @@ def read_record(folder: Path, test: dict, units: dict, columns: dict, where: str
     """Read one test's file (CSV or ARTS JSON) and convert it to SI."""
     rel = test["file"]
     path = (folder / rel)
-    if not path.is_file():
-        raise InputError(f"{where}, key file: {path} "
-                         + ("is a folder, not a file" if path.is_dir() else "not found"))
+    if not_a_file(path):
+        raise InputError(f"{where}, key file: {path}: {not_a_file(path)}")
     name = path.name.lower()
     if name.endswith(".json") or name.endswith(".json.gz"):
         cols, own, _ = read_arts_json(path)

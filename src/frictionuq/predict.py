@@ -99,13 +99,8 @@ def harmonic_input(amplitude_m: float, frequency_hz: float, cycles: int = HARMON
 def read_input(path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """(t, x, applied or None) from a CSV with columns time (s), displacement (m) and optionally
     applied (N or Pa); errors name the file and line."""
-    from . import model as M
-    from .records import read_csv
-    cols = read_csv(path, {"time": "time", "displacement": "displacement"}, {"applied": "applied"})
-    try:          # the record's own faults (e.g. its applied signal) name the file
-        M.prepare(cols["time"], cols["displacement"], cols.get("applied"))
-    except ValueError as e:
-        raise InputError(f"{path}: {e}") from None
+    from .simulate_io import read_drive
+    cols = read_drive(path)
     return cols["time"], cols["displacement"], cols.get("applied")
 
 
@@ -317,16 +312,16 @@ def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied
     pred = predict(fit_dir, a_si, t, x, eps=eps, n_draws=n_draws, seed=seed,
                    include_offset=include_offset, applied_signal=sig, samples_per_cycle=spc,
                    summary=summary, drive_lowpass=lowpass_mult)
+    # the fits the draws rest on: their own, or every level for the force-dependence law
+    behind = (pred.draws.fits if pred.draws.source != "force-dependence law"
+              else [f["id"] for f in summary["fits"]])
     meta = {"package_version": __version__, "environment": environment(),
             "fit_dir": str(fit_dir), "campaign": summary.get("campaign"),
-            "fitted_range": fitted_range(fit_dir, pred.draws.fits if pred.draws.source !=
-                                         "force-dependence law" else
-                                         [f["id"] for f in summary["fits"]], t, x),
+            "fitted_range": fitted_range(fit_dir, behind, t, x),
             "applied": {"si": a_si, "si_unit": U.si_unit_of_applied(unit), "value": value,
                         "unit": unit, "unit_source": unit_src},
             "draws_source": pred.draws.source, "fits": pred.draws.fits,
-            "not_converged_fits": not_converged(summary, None if pred.draws.source ==
-                                                "force-dependence law" else pred.draws.fits),
+            "not_converged_fits": not_converged(summary, behind),
             "model": pred.draws.model,
             "effects": list(pred.draws.effects), "n_draws": int(n_draws), "seed": int(seed),
             "input": inp, "include_offset": bool(include_offset),

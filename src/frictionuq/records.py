@@ -70,12 +70,10 @@ def read_csv(path, columns: dict[str, str], optional: dict[str, str] | None = No
     df.columns = [str(c).strip() for c in df.columns]
     blank = df.apply(lambda c: c.isna() | (c.astype(str).str.strip() == "")).all(axis=1)
     df = df[~blank.to_numpy()]
-    dup = sorted({c for c in df.columns if list(df.columns).count(c) > 1}
-                 | {str(c).rsplit(".", 1)[0] for c in df.columns
-                    if "." in str(c) and str(c).rsplit(".", 1)[1].isdigit()
-                    and str(c).rsplit(".", 1)[0] in df.columns})
-    if dup:       # pandas renames a repeated header to NAME.1: which one was meant is unknown
-        raise InputError(f"{path}: the header repeats column {dup[0]!r}; give each column once")
+    names = [c.strip() for c in _header(path)]   # pandas renames a repeat NAME.1: read it here
+    dup = next((c for i, c in enumerate(names) if c in names[:i]), None)
+    if dup is not None:
+        raise InputError(f"{path}: the header repeats column {dup!r}; give each column once")
     out = {}
     for logical, header in columns.items():
         if header not in df.columns:
@@ -91,6 +89,16 @@ def read_csv(path, columns: dict[str, str], optional: dict[str, str] | None = No
     if "time" in out:        # named by the file's own line (blank lines counted)
         check_time(path, out["time"], lines=df.index.to_numpy() + 2)
     return out
+
+
+def _header(path) -> list[str]:
+    """The CSV's header row as written (its first non-blank line)."""
+    import csv
+    with open(path, newline="", encoding="utf-8", errors="replace") as f:
+        for row in csv.reader(f):
+            if any(c.strip() for c in row):
+                return row
+    return []
 
 
 def check_time(path, t: np.ndarray, line_offset: int = 2, what: str = "line", lines=None) -> None:

@@ -46,17 +46,24 @@ def read_params(path) -> tuple[dict, dict | None]:
     return doc, effects
 
 
+def read_drive(path) -> dict[str, np.ndarray]:
+    """{time, displacement[, applied]} (SI) of a drive CSV (simulate's and predict's input),
+    checked as the model takes it; errors name the file and line (e.g. the applied signal's)."""
+    cols = read_csv(path, {"time": "time", "displacement": "displacement"}, {"applied": "applied"})
+    try:
+        M.prepare(cols["time"], cols["displacement"], cols.get("applied"))
+    except ValueError as e:
+        raise InputError(f"{path}: {e}") from None
+    return cols
+
+
 def simulate_files(params_path, input_path, out_path, model: str = "three_stage", eps: float = 0.0) -> int:
     """Simulate the force for the record in `input_path`; write `out_path`. Returns the sample count."""
     params, effects = read_params(params_path)
-    cols = read_csv(input_path, {"time": "time", "displacement": "displacement"}, {"applied": "applied"})
+    cols = read_drive(input_path)
     import math
     if not (math.isfinite(float(eps)) and float(eps) >= 0):
         raise InputError(f"eps {eps!r}: the reversal dead-band must be finite and >= 0 m")
-    try:          # the record's own faults (e.g. the applied signal) name the input file
-        M.prepare(cols["time"], cols["displacement"], cols.get("applied"))
-    except ValueError as e:
-        raise InputError(f"{input_path}: {e}") from None
     for o in (Path(out_path), Path(f"{out_path}.json")):     # refused before anything is written
         if o.is_dir():
             raise InputError(f"cannot write the file {o}: it is a folder")
