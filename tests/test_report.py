@@ -157,13 +157,20 @@ def test_images_are_inline_pngs_and_nothing_external(rendered_report):
 
 
 @pytest.mark.slow
-def test_parameter_tables_carry_units(rendered_report):
+def test_parameter_tables_carry_units(report_run, rendered_report):
     part = sub_html(rendered_report["html"], "fit-applied-36lb")
-    for name, unit in (("fc_fwd", "N"), ("sigma0", "N/m"), ("sigma1", "N s/m"), ("v_s", "m/s"),
-                       ("d2", "m"), ("force_offset", "N"),
-                       ("sigma_noise[sine-2Hz-36lb-0.5in]", "N"), ("noise_phi[sine-2Hz-36lb-0.5in]", "1")):
-        row = re.escape(f"<tr><td>{name}</td><td>{unit}</td>")
-        assert re.search(row, part), f"parameter {name} without its unit {unit}"
+    summary = json.loads((report_run["run_dir"] / "fit" / "summary.json").read_text())
+    fit = next(f for f in summary["fits"] if f["id"] == "applied-36lb")
+    # shown in display units (summary.json keeps SI): the mean is the SI mean times the factor
+    for name, unit, factor in (("fc_fwd", "kN", 1e-3), ("sigma0", "kN/mm", 1e-6),
+                               ("sigma1", "kN s/m", 1e-3), ("v_s", "mm/s", 1e3), ("d2", "mm", 1e3),
+                               ("force_offset", "kN", 1e-3),
+                               ("sigma_noise[sine-2Hz-36lb-0.5in]", "kN", 1e-3),
+                               ("noise_phi[sine-2Hz-36lb-0.5in]", "1", 1.0)):
+        row = re.search(re.escape(f"<tr><td>{name}</td><td>{unit}</td>") + r"<td>([^<]*)</td>", part)
+        assert row, f"parameter {name} without its unit {unit}"
+        shown, mean = float(row.group(1)), fit["parameters"][name]["mean"] * factor
+        assert shown == pytest.approx(mean, rel=1e-3, abs=1e-12), (name, shown, mean)
     for header in ("<th>unit</th>", "<th>2.5 %</th>", "<th>97.5 %</th>", "R-hat", "ESS bulk",
                    "ESS tail", "autocorrelation time tau (steps)", "RMSE of the posterior-median"):
         assert header in part

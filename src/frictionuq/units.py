@@ -20,7 +20,7 @@ UNITS: dict[str, dict[str, float]] = {
     # `applied` is a force or, for hydraulic devices (the MFD), a pressure
     "applied": {"N": 1.0, "kN": 1e3, "lbf": LBF, "lb": LBF, "kip": 1e3 * LBF, "psi": PSI, "Pa": 1.0},
     "velocity": {"m/s": 1.0, "mm/s": 1e-3, "in/s": INCH},
-    "stiffness": {"N/m": 1.0, "kN/m": 1e3, "kip/in": 1e3 * LBF / INCH, "lbf/in": LBF / INCH},
+    "stiffness": {"N/m": 1.0, "kN/m": 1e3, "kN/mm": 1e6, "kip/in": 1e3 * LBF / INCH, "lbf/in": LBF / INCH},
     "damping": {"N s/m": 1.0, "kN s/m": 1e3, "lbf s/in": LBF / INCH},
     "energy": {"J": 1.0, "kJ": 1e3},
     "acceleration": {"m/s^2": 1.0, "g": 9.80665, "cm/s^2": 1e-2},
@@ -59,6 +59,18 @@ def from_si(value, kind: str, unit: str):
     """Convert `value` of `kind` from SI to `unit` (for display)."""
     f = factor(kind, unit)
     return value / f if not isinstance(value, (list, tuple)) else np.asarray(value) / f
+
+
+#: the unit a report shows an SI quantity in (a damper's forces are kN, its strokes mm): every
+#: parameter of one unit is shown in the same display unit, so a column reads without exponents
+DISPLAY = {"N": ("kN", 1e-3), "m": ("mm", 1e3), "m/s": ("mm/s", 1e3), "N/m": ("kN/mm", 1e-6),
+           "N s/m": ("kN s/m", 1e-3), "J": ("kJ", 1e-3)}
+
+
+def display(si_unit: str) -> tuple[str, float]:
+    """(display unit, factor from SI) of a quantity in `si_unit`; other units are shown as they
+    are (factor 1)."""
+    return DISPLAY.get(si_unit, (si_unit, 1.0))
 
 
 def fmt(value: float, unit: str, digits: int = 4) -> str:

@@ -7,7 +7,8 @@ import json
 
 from .. import blocks as B
 from ...params import NOISE_EFFECTS
-from ..tables import num, table
+from ... import units
+from ..tables import num, scaled, table
 
 
 def build(ctx, folder=None) -> list[dict]:
@@ -43,9 +44,11 @@ def build(ctx, folder=None) -> list[dict]:
         out.append(_candidates(r["candidates"], f"round {r['round']}: candidates against 3-stage + "
                                f"{' + '.join(r['baseline_effects'])}, ranked"))
     if d.get("effect_parameters"):
-        out.append(B.html(table(["parameter", "mean", "2.5 %", "97.5 %", "unit"],
-                                [(n, num(s["mean"]), num(s["q2.5"]), num(s["q97.5"]), s["unit"])
-                                 for n, s in d["effect_parameters"].items()],
+        rows = []
+        for n, s in d["effect_parameters"].items():
+            unit, fac = units.display(s["unit"])
+            rows.append((n, *(scaled(s[k], fac) for k in ("mean", "q2.5", "q97.5")), unit))
+        out.append(B.html(table(["parameter", "mean", "2.5 %", "97.5 %", "unit"], rows,
                                 caption="the named effects' parameters (MCMC refit)" if len(named) > 1
                                 else "the named effect's parameters (MCMC refit)")))
     out.extend(gap_blocks(folder, d))

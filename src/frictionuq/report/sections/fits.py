@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ... import params as P
+from ... import units
 from ...errors import InputError
 from .. import blocks as B
 from .. import figures as F
@@ -17,6 +18,11 @@ def unit_of(name: str) -> str:
     """Unit of a summary parameter name ('sigma_noise[test]' -> N, 'noise_phi[test]' -> 1)."""
     base = name.split("[", 1)[0]
     return P.PARAMS[base].unit if base in P.PARAMS else "?"
+
+
+def display_of(name: str) -> tuple[str, float]:
+    """(display unit, factor from SI) of a summary parameter name: kN, mm, mm/s, kN/mm, kN s/m."""
+    return units.display(unit_of(name))
 
 
 def description_of(name: str) -> str:
@@ -161,14 +167,16 @@ def convergence(ctx, f: dict) -> list[dict]:
 def parameters(f: dict) -> list[dict]:
     rows = []
     for name, p in (f.get("parameters") or {}).items():
-        unit = unit_of(name)
+        unit, fac = display_of(name)
         if "fixed" in p:
-            rows.append([name, unit, f"{num(p['fixed'])} (fixed)", DASH, DASH, DASH, description_of(name)])
+            rows.append([name, unit, f"{scaled(p['fixed'], fac)} (fixed)", DASH, DASH, DASH,
+                         description_of(name)])
         else:
-            rows.append([name, unit, num(p.get("mean")), num(p.get("sd")), num(p.get("q2.5")),
-                         num(p.get("q97.5")), description_of(name)])
+            rows.append([name, unit] + [scaled(p.get(k), fac) for k in ("mean", "sd", "q2.5", "q97.5")]
+                        + [description_of(name)])
     return [B.html(table(["parameter", "unit", "mean", "sd", "2.5 %", "97.5 %", "meaning"], rows,
-                         caption="posterior of the parameters (SI)", cls="params"))]
+                         caption="posterior of the parameters (summary.json holds them in SI)",
+                         cls="params"))]
 
 
 def identifiability(f: dict) -> list[dict]:
