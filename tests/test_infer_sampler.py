@@ -66,6 +66,30 @@ def test_identifiability_flags_posteriors_at_a_prior_bound():
     assert rep["at_prior_bound"] == {"d3": "lower", "v_s": "upper"}
 
 
+def test_identifiability_flags_a_wide_posterior_cut_off_by_a_bound_not_one_merely_near_it():
+    """The demo's 36 lb v_s: 95 % interval [41.6, 56.0] mm/s against a bound of 56.1, the
+    histogram piled at the bound. A rule on the interval's distance from the bound (the whole
+    interval within 2 % of the prior width) missed it; the density at the bound does not."""
+    pri = {"fc_fwd": Prior("fc_fwd", "uniform", 0.0, 10.0), "d3": Prior("d3", "uniform", 0.0, 1.0),
+           "v_s": Prior("v_s", "uniform", 0.0, 1.0),
+           "sigma_noise": Prior("sigma_noise", "loguniform", 0.1, 10.0)}
+    fixed = {n: 1.0 for n in ("fc_bwd", "fs_fwd", "fs_bwd", "sigma0", "sigma1", "sigma2", "k2",
+                              "d2", "k3", "w")}
+    sp = Space("three_stage", (), "iid", pri, fixed)
+    rng = np.random.default_rng(3)
+    n = 4000
+    th = np.stack([rng.normal(5.0, 0.1, n),                       # fc_fwd: well inside
+                   rng.normal(0.02, 0.003, n),                     # d3: near the bound, not at it
+                   1 - np.abs(rng.normal(0.0, 0.1, n))], axis=1)   # v_s: cut off at its upper bound
+    rep = identifiability(sp, {"theta": th.reshape(2, n // 2, 3)})
+    assert rep["at_prior_bound"] == {"v_s": "upper"}
+    assert "v_s" not in rep["close_to_prior"]
+    # a posterior as wide as its prior touches both bounds but is reported as close to the prior
+    th[:, 2] = rng.uniform(0, 1, n)
+    rep = identifiability(sp, {"theta": th.reshape(2, n // 2, 3)})
+    assert rep["at_prior_bound"] == {} and "v_s" in rep["close_to_prior"]
+
+
 def test_an_unreadable_stored_chain_is_started_afresh(tmp_path):
     """A chain file left unreadable (a process killed inside an HDF5 write) is not resumed and
     does not fail the fit: it is replaced, and the log says why."""
