@@ -52,13 +52,18 @@ def test_jsonable_turns_numpy_scalars_into_json():
                    "nested": [{"n": 2}], "3": "key"}
 
 
-def test_identifiability_flags_posteriors_at_a_prior_bound():
+def _three_free_space():
+    """fc_fwd on [0, 10], d3 and v_s on [0, 1] free, the rest fixed."""
     pri = {"fc_fwd": Prior("fc_fwd", "uniform", 0.0, 10.0), "d3": Prior("d3", "uniform", 0.0, 1.0),
            "v_s": Prior("v_s", "uniform", 0.0, 1.0),
            "sigma_noise": Prior("sigma_noise", "loguniform", 0.1, 10.0)}
     fixed = {n: 1.0 for n in ("fc_bwd", "fs_fwd", "fs_bwd", "sigma0", "sigma1", "sigma2", "k2",
                               "d2", "k3", "w")}
-    sp = Space("three_stage", (), "iid", pri, fixed)
+    return Space("three_stage", (), "iid", pri, fixed)
+
+
+def test_identifiability_flags_posteriors_at_a_prior_bound():
+    sp = _three_free_space()
     rng = np.random.default_rng(2)
     th = np.stack([rng.normal(5, 0.1, 4000), rng.uniform(0, 0.005, 4000),
                    1 - rng.uniform(0, 0.005, 4000)], axis=1)
@@ -70,12 +75,7 @@ def test_identifiability_flags_a_wide_posterior_cut_off_by_a_bound_not_one_merel
     """The demo's 36 lb v_s: 95 % interval [41.6, 56.0] mm/s against a bound of 56.1, the
     histogram piled at the bound. A rule on the interval's distance from the bound (the whole
     interval within 2 % of the prior width) missed it; the density at the bound does not."""
-    pri = {"fc_fwd": Prior("fc_fwd", "uniform", 0.0, 10.0), "d3": Prior("d3", "uniform", 0.0, 1.0),
-           "v_s": Prior("v_s", "uniform", 0.0, 1.0),
-           "sigma_noise": Prior("sigma_noise", "loguniform", 0.1, 10.0)}
-    fixed = {n: 1.0 for n in ("fc_bwd", "fs_fwd", "fs_bwd", "sigma0", "sigma1", "sigma2", "k2",
-                              "d2", "k3", "w")}
-    sp = Space("three_stage", (), "iid", pri, fixed)
+    sp = _three_free_space()
     rng = np.random.default_rng(3)
     n = 4000
     th = np.stack([rng.normal(5.0, 0.1, n),                       # fc_fwd: well inside
