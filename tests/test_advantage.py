@@ -183,3 +183,15 @@ def test_with_the_real_law(fit_dir, tmp_path):
     meta = write_prediction(fd, tmp_path / "p", harmonic=(0.0254, 0.2), applied=200, n_draws=50)
     assert meta["draws_source"] == "force-dependence law" and meta["applied"]["unit"] == "N"
     assert meta["fits"] == ["applied-267N"]           # noise from the nearest level (log force)
+
+
+def test_fits_behind_names_only_the_fits_the_table_uses():
+    """The demo's advantage.json listed the 0 lb fit as not converged, though C is drawn from the
+    36 lb fit only (no row at 0 lb): only the fits behind the rows are listed."""
+    from frictionuq.advantage import fits_behind
+    from frictionuq.draws import LAW_SOURCE
+    summary = {"fits": [{"id": "applied-0lb"}, {"id": "applied-36lb"}]}
+    df = pd.DataFrame({"fit": ["applied-36lb"] * 2, "source": ["posterior"] * 2})
+    assert fits_behind(df, summary) == ["applied-36lb"]
+    law = pd.concat([df, pd.DataFrame({"fit": ["law"], "source": [LAW_SOURCE]})])
+    assert fits_behind(law, summary) == ["applied-0lb", "applied-36lb"]

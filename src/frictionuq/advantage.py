@@ -33,6 +33,7 @@ import pandas as pd
 
 from . import atomic, published
 from .environment import environment
+from .draws import LAW_SOURCE
 from .errors import InputError
 from .fitdir import campaign_applied_unit, campaign_of, load_posterior, load_summary, not_converged
 
@@ -166,7 +167,7 @@ def _law_rows(fit_dir, summary, unit, geo, device) -> list[dict]:
         except InputError:
             return []
         if "fc_fwd" in d and "fc_bwd" in d:
-            rows += _rows("law", "force-dependence law", a, {"fwd": d["fc_fwd"], "bwd": d["fc_bwd"]},
+            rows += _rows("law", LAW_SOURCE, a, {"fwd": d["fc_fwd"], "bwd": d["fc_bwd"]},
                           unit, geo, device)
     return rows
 
@@ -199,6 +200,14 @@ def format_table(df: pd.DataFrame) -> str:
     return "\n".join(lines)
 
 
+def fits_behind(df: pd.DataFrame, summary: dict) -> list[str]:
+    """The fits the table's rows are drawn from: the posterior rows' own, and every fit when a
+    row comes from the force-dependence law (fitted on all levels)."""
+    if (df["source"] != "posterior").any():
+        return [f["id"] for f in summary["fits"]]
+    return list(dict.fromkeys(df.loc[df["source"] == "posterior", "fit"]))
+
+
 def write_advantage(fit_dir, out_dir=None) -> pd.DataFrame:
     """advantage() written as out_dir/advantage.csv and advantage.json (out_dir defaults to the
     fit folder), each atomically. Returns the table."""
@@ -214,7 +223,7 @@ def write_advantage(fit_dir, out_dir=None) -> pd.DataFrame:
            "fit_dir": str(fit_dir), "campaign": summary.get("campaign"),
            # the law rows' draws come from this seed; the fits' own seed and config as fitted
            "seed": LAW_SEED, "fit_config": summary.get("config"),
-           "not_converged_fits": not_converged(summary),
+           "not_converged_fits": not_converged(summary, fits_behind(df, summary)),
            "device": getattr(camp, "device", None), "geometry": getattr(camp, "geometry", None),
            "formula": "C = fc_dir / applied; mu = ln(1 + C damping_radius / drum_radius) / "
                       "radians(wrap_deg) (BRFD Eq. 10 inverted)",

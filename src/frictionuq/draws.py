@@ -27,6 +27,9 @@ REL_TOL = 1e-6
 LIKELIHOOD_ONLY = set(P.LIKELIHOOD_NAMES)
 
 
+LAW_SOURCE = "force-dependence law"    # Draws.source of draws made by the law
+
+
 @dataclass
 class Draws:
     """S parameter draws for one prediction, with their measurement noise and offset."""
@@ -44,6 +47,13 @@ class Draws:
     @property
     def size(self) -> int:
         return self.offset.size
+
+    def resting_on(self, summary: dict) -> list[str]:
+        """The fits these draws rest on: their own, or every level for the force-dependence law
+        (fitted on all of them)."""
+        if self.source == LAW_SOURCE:
+            return [f["id"] for f in summary["fits"]]
+        return list(self.fits)
 
 
 def _take(posts: list[FitPosterior], n: int, rng) -> dict:
@@ -128,4 +138,4 @@ def choose_draws(fit_dir, applied_si: float, n: int, rng, summary: dict | None =
         d.get("force_offset", np.zeros(n))
     params = {k: np.asarray(v, float) for k, v in params.items() if k not in LIKELIHOOD_ONLY}
     return Draws(params, model, tuple(effects), off, d["_sigma"], d["_phi"], d["_rate"],
-                 "force-dependence law", [p.id for p in posts], d["_theta"])
+                 LAW_SOURCE, [p.id for p in posts], d["_theta"])

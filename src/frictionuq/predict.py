@@ -41,7 +41,7 @@ import pandas as pd
 from . import atomic, params as P
 from .environment import environment
 from .errors import InputError, check_draws, check_seed
-from .draws import Draws, choose_draws
+from .draws import LAW_SOURCE, Draws, choose_draws
 from .fitdir import campaign_applied_unit, load_summary, not_converged
 
 QUANTILES = (2.5, 25.0, 50.0, 75.0, 97.5)
@@ -312,9 +312,7 @@ def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied
     pred = predict(fit_dir, a_si, t, x, eps=eps, n_draws=n_draws, seed=seed,
                    include_offset=include_offset, applied_signal=sig, samples_per_cycle=spc,
                    summary=summary, drive_lowpass=lowpass_mult)
-    # the fits the draws rest on: their own, or every level for the force-dependence law
-    behind = (pred.draws.fits if pred.draws.source != "force-dependence law"
-              else [f["id"] for f in summary["fits"]])
+    behind = pred.draws.resting_on(summary)
     meta = {"package_version": __version__, "environment": environment(),
             "fit_dir": str(fit_dir), "campaign": summary.get("campaign"),
             "fitted_range": fitted_range(fit_dir, behind, t, x),
@@ -328,7 +326,7 @@ def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied
             "offset": "force_offset (load-cell zero) excluded from force_model_*; "
                       + ("included in" if include_offset else "excluded from") + " force_*",
             "noise": "stationary AR(1) (+ white, from an arma fit's noise_theta) per draw: sigma_noise, noise_phi of one of the fit's tests "
-                     + ("(same posterior draw)" if pred.draws.source != "force-dependence law" else
+                     + ("(same posterior draw)" if pred.draws.source != LAW_SOURCE else
                         "(a posterior draw of the fitted level nearest in log force, listed in fits)")
                      + "; phi converted to the input's step as phi ** (dt * rate_hz of the fit "
                        "record), marginal sd kept",

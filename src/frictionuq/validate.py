@@ -10,7 +10,11 @@ measured force carries both), and scored against the measured force:
 * rmse: RMSE of the band's median against the measured force (N);
 * nrmse: rmse / peak-to-peak measured force (dimensionless; stated beside the rmse);
 * rmse_model_offset_free: RMSE after removing the mean residual (the offset), as the `table`
-  command reports for the published model.
+  command reports for the published model;
+* bias_N: the mean residual, measured minus median (N).
+`calibration_notes` says in words when the scores show a miscalibrated band: a 95 % band under
+90 %, or a 50 % band outside 30-70 % (a 95 % band can cover well while the median is biased: the
+50 % band then shows it).
 Writes out_dir/validation.json (+ the bands of every test as <test>.bands.csv and a figure
 <test>.png of measured force inside the bands).
 """
@@ -35,7 +39,33 @@ def score(y: np.ndarray, bands) -> dict:
     ptp = float(np.ptp(y))
     return {"coverage95": float(np.mean(inside95)), "coverage50": float(np.mean(inside50)),
             "rmse_N": rmse, "nrmse": rmse / ptp if ptp > 0 else float("nan"),
-            "rmse_offset_free_N": float(np.std(r)), "peak_to_peak_N": ptp, "samples": int(y.size)}
+            "rmse_offset_free_N": float(np.std(r)), "bias_N": float(np.mean(r)),
+            "peak_to_peak_N": ptp, "samples": int(y.size)}
+
+
+COVERAGE95_LOW = 0.90          # a 95 % band covering less than this: overconfident
+COVERAGE50_RANGE = (0.30, 0.70)  # a 50 % band covering outside this: biased, too narrow or too wide
+
+
+def calibration_notes(s: dict) -> list[str]:
+    """One sentence per sign of miscalibration in a test's scores (score's dict), none if the
+    bands look calibrated."""
+    out = []
+    c95, c50 = s.get("coverage95"), s.get("coverage50")
+    bias = s.get("bias_N")
+    why = (f"; the median is off by {bias / 1e3:+.3g} kN on average (measured minus median)"
+           if bias is not None and np.isfinite(bias) else "")
+    if c95 is not None and c95 < COVERAGE95_LOW:
+        out.append(f"the 95 % band covers {c95:.1%} of the samples, under {COVERAGE95_LOW:.0%}: "
+                   f"overconfident{why}")
+    if c50 is not None and c50 < COVERAGE50_RANGE[0]:
+        out.append(f"the 50 % band covers {c50:.1%} of the samples (calibrated: about 50 %): the "
+                   f"prediction is biased or too narrow{why}, so the 95 % band's coverage "
+                   f"({c95:.1%}) overstates its calibration")
+    elif c50 is not None and c50 > COVERAGE50_RANGE[1]:
+        out.append(f"the 50 % band covers {c50:.1%} of the samples (calibrated: about 50 %): the "
+                   "bands are wider than the errors (conservative)")
+    return out
 
 
 def _figure(path, t, y, bands, title):
@@ -83,7 +113,7 @@ def validate(fit_dir, campaign_path, test_ids, out_dir, *, n_draws: int = 400, s
     out = Path(out_dir)
     # the folder is written whole (a bad test later in the list leaves nothing half-written)
     atomic.check_replaceable(fit_dir, out, "validation.json", "fit", "a validation folder")
-    results = []
+    results, behind = [], []
     lowpass_mult = fit_drive_lowpass(summary)    # measured records: filtered like the fit's
     with atomic.output_dir(out) as tmp:
         for tid in test_ids:
@@ -97,6 +127,7 @@ def validate(fit_dir, campaign_path, test_ids, out_dir, *, n_draws: int = 400, s
                      drive_lowpass=lowpass_mult,
                      held_out=tid not in fitted_tests, draws_source=p.draws.source)
             results.append(s)
+            behind += p.draws.resting_on(summary)
             atomic.write_text(tmp / f"{tid}.bands.csv", p.bands.to_csv(index=False))
             if figures:
                 _figure(tmp / f"{tid}.png", r.t, r.force, p.bands,
@@ -107,7 +138,7 @@ def validate(fit_dir, campaign_path, test_ids, out_dir, *, n_draws: int = 400, s
         doc = {"package_version": __version__, "environment": environment(),
                "fit_dir": str(fit_dir), "campaign": camp.name,
                "campaign_path": str(campaign_path), "seed": seed, "n_draws": n_draws,
-               "not_converged_fits": not_converged(summary),
+               "not_converged_fits": not_converged(summary, behind),
                "units": "force N, applied_si N or Pa, eps m; coverage fractions of samples; nrmse = rmse / "
                         "peak-to-peak measured force",
                "tests": results}

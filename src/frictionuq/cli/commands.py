@@ -68,6 +68,10 @@ def _cmd_validate(a):
               + ("" if r["held_out"] else "  (NOT held out: the fit saw this test)"))
     print("cover95/cover50: fraction of measured samples inside the 95 %/50 % band; NRMSE: RMSE of "
           "the median / the measured force's peak to peak")
+    from ..validate import calibration_notes
+    for r in doc["tests"]:
+        for line in calibration_notes(r):
+            print(f"note: {r['test']}: {line}")
     _note_not_converged(doc["not_converged_fits"], "the predictions are drawn")
 
 
@@ -111,8 +115,10 @@ def _cmd_advantage(a):
     df = write_advantage(a.fit_dir, a.out)
     print(format_table(df))
     print(f"wrote {a.out or a.fit_dir}/advantage.csv and advantage.json")
+    from ..advantage import fits_behind
     from ..fitdir import load_summary, not_converged
-    _note_not_converged(not_converged(load_summary(a.fit_dir)), "C and mu are drawn")
+    summary = load_summary(a.fit_dir)
+    _note_not_converged(not_converged(summary, fits_behind(df, summary)), "C and mu are drawn")
 
 
 def _cmd_compare(a):
@@ -159,6 +165,9 @@ def _cmd_discover(a):
           + (f", noise scale {d['noise_scale']:.4g} N" if d["noise_scale"] else ""))
     for n, st in d["effect_parameters"].items():
         print(f"  {n} = {st['mean']:.4g} {st['unit']} [{st['q2.5']:.4g}, {st['q97.5']:.4g}]")
+    for lid, vals in (d.get("effect_parameters_map") or {}).items():
+        print(f"  at its MAP ({lid}; no refit, so no intervals): "
+              + ", ".join(f"{n} = {v['value']:.4g} {v['unit']}" for n, v in vals.items()))
     from ..report import render_discrepancy_page
     page = render_discrepancy_page(a.out)
     print(f"wrote {a.out}/discrepancy.json and {page}")
