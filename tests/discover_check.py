@@ -12,7 +12,7 @@ import numpy as np
 from frictionuq.campaign import load_campaign
 from frictionuq.discrepancy import fits
 from frictionuq.discrepancy.hidden import hidden_campaign
-from frictionuq.params import BEYOND_SPEC, NOISE_EFFECTS
+from frictionuq.params import BEYOND_SPEC, EFFECTS, NOISE_EFFECTS
 
 
 def check_discover(tmp_path, device, effect, seed, refit, also=None, max_effects=1):
@@ -132,6 +132,14 @@ def check_discover(tmp_path, device, effect, seed, refit, also=None, max_effects
         assert sum(r < 1.0 for r in ratios) >= len(ratios) - 1 and max(ratios) < 1.05, ratios
         for t in ans["tests"]:
             assert (tmp_path / "out" / f"loops-{t['id']}.png").stat().st_size > 10_000
+    if not refit:
+        # no intervals without the refit, but the named effects' MAP values, per level, shown
+        want = {n for e in doc["named_effects"] for n in EFFECTS[e]}
+        maps = doc["effect_parameters_map"]
+        assert list(maps) == [lv["id"] for lv in doc["levels"]]
+        assert all(set(v) == want for v in maps.values()), (maps, want)
+        assert doc["effect_parameters"] == {}
+        assert "at its MAP (run with --no-refit" in render_discrepancy_page(tmp_path / "out").read_text()
     if refit:
         assert doc["rmse_after"] <= 1.2 * noise, (doc["rmse_after"], noise)
         assert 0.8 * noise <= doc["noise_scale"] <= 1.2 * noise, (doc["noise_scale"], noise)

@@ -292,6 +292,11 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
                 doc["effect_parameters"][n]["unit"] = P.PARAMS[n].unit
     elif named_all:
         doc["rmse_after"] = next(r for r in last["ranked"] if r["effect"] == last["named"])["rmse_map"]
+        # no refit, so no intervals: the named effects' parameters at each level's MAP
+        doc["effect_parameters_map"] = {
+            lv["id"]: {n: {"value": float(m[n]), "unit": P.PARAMS[n].unit}
+                       for e_ in named_all for n in P.EFFECTS[e_] if n in m}
+            for lv, m in zip(last["levels"], final_maps)}
     if diagnostics:
         doc["diagnostics"], doc["combined_diagnostics"] = [], []
         for s_, lv, fm in zip(specs, levels, final_maps):

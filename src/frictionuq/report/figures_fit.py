@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import params as P
+from .. import units
 from .figures import DPI, KN, MM, WIDTH, decimate, plt, png
 
 MAX_CORNER_DRAWS = 2000
@@ -34,21 +35,19 @@ def residual_figure(per_test: list[tuple[str, np.ndarray, np.ndarray, np.ndarray
 
 
 def corner_columns(draws: dict[str, np.ndarray]) -> tuple[np.ndarray, list[str]]:
-    """(samples (M, k), axis labels) for the corner plot: log10 of positive parameters that span
-    orders of magnitude (log-scale parameters, or values above 1e3), lengths in mm, the rest in
-    SI; at most MAX_CORNER_DRAWS draws (evenly thinned)."""
+    """(samples (M, k), axis labels) for the corner plot, in the parameter table's display units
+    (kN, mm, mm/s, kN/mm, kN s/m: units.display): log10 of positive parameters that span orders of
+    magnitude (log-scale parameters, or values above 1e3 in that unit); at most MAX_CORNER_DRAWS
+    draws (evenly thinned)."""
     cols, labels = [], []
     for n, v in draws.items():
-        v = np.asarray(v, float).ravel()
         meta = P.PARAMS.get(n)
-        unit = meta.unit if meta else "?"
+        unit, fac = units.display(meta.unit if meta else "?")
+        v = np.asarray(v, float).ravel() * fac
         positive = bool(np.all(v > 0))
         if positive and ((meta is not None and meta.log_scale) or np.max(v) > 1e3):
             cols.append(np.log10(v))
             labels.append(f"log10 {n}\n({unit})")
-        elif unit == "m":
-            cols.append(v * MM)
-            labels.append(f"{n}\n(mm)")
         else:
             cols.append(v)
             labels.append(f"{n}\n({unit})")
@@ -89,8 +88,8 @@ def corner_figure(draws: dict[str, np.ndarray], title: str) -> bytes:
     handles = [Line2D([], [], color="k", lw=1, label="posterior draws: 1-D histograms, 2-D densities"),
                Line2D([], [], color="k", ls="--", lw=1, label="2.5, 50, 97.5 % quantiles")]
     fig.legend(handles=handles, loc="upper right", fontsize=8, frameon=False)
-    fig.suptitle(f"{title}\n{X.shape[0]} posterior draws; wide-ranging parameters as log10, "
-                 "lengths in mm", fontsize=10, x=0.02, ha="left")
+    fig.suptitle(f"{title}\n{X.shape[0]} posterior draws; wide-ranging parameters as log10; "
+                 "units as in the parameter table", fontsize=10, x=0.02, ha="left")
     return png(fig)
 
 
@@ -106,6 +105,7 @@ def rank_figure(dt, names: list[str], title: str, max_chains: int = 8) -> bytes:
         ax.tick_params(labelsize=7)
         if ax.get_xlabel():
             ax.set_xlabel("fractional rank (dimensionless)", fontsize=7)
+            ax.set_ylabel("ECDF minus uniform", fontsize=7)
         ax.title.set_fontsize(8)
     fig.suptitle(f"{title}\nrank ECDF minus uniform per walker (first {max_chains} walkers; "
                  "a well-mixed chain stays inside the envelope)", fontsize=10)

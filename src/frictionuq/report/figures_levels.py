@@ -4,14 +4,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import params as P
+from .. import units
 from .figures import WIDTH, plt, png
 
 
-def _display(name: str) -> tuple[float, str, bool]:
-    """(factor from SI, unit label, log axis) of a force-dependent parameter."""
-    if name == "sigma0":
-        return 1.0, "N/m", True
-    return 1e-3, "kN", False
+def display(name: str) -> tuple[float, str, bool]:
+    """(factor from SI, unit label, log axis) of a force-dependent parameter, in the parameter
+    tables' display units (kN, kN/mm); sigma0 on a log axis."""
+    unit, fac = units.display(P.PARAMS[name].unit)
+    return fac, unit, name == "sigma0"
 
 
 def across_figure(names: list[str], levels: list[dict], law: dict | None, published: dict | None,
@@ -26,7 +28,7 @@ def across_figure(names: list[str], levels: list[dict], law: dict | None, publis
     fig, axes = pyplot.subplots(nrows, ncols, figsize=(WIDTH, 3.0 * nrows), squeeze=False)
     flat = axes.ravel()
     for ax, name in zip(flat, names):
-        fac, unit, logy = _display(name)
+        fac, unit, logy = display(name)
         for conv, mk, lab in ((True, "o", "posterior median, 95 % interval"),
                               (False, "o", "posterior (fit NOT converged)")):
             pts = [L for L in levels if name in L["stats"] and L["converged"] == conv]

@@ -51,6 +51,15 @@ def build(ctx, folder=None) -> list[dict]:
         out.append(B.html(table(["parameter", "mean", "2.5 %", "97.5 %", "unit"], rows,
                                 caption="the named effects' parameters (MCMC refit)" if len(named) > 1
                                 else "the named effect's parameters (MCMC refit)")))
+    elif d.get("effect_parameters_map"):
+        rows = []
+        for lid, vals in d["effect_parameters_map"].items():
+            for n, v in vals.items():
+                unit, fac = units.display(v["unit"])
+                rows.append((lid, n, scaled(v["value"], fac), unit))
+        out.append(B.html(table(["level", "parameter", "value at the MAP", "unit"], rows,
+                                caption="the named effect's parameters at its MAP (run with "
+                                        "--no-refit: no MCMC refit, so no intervals)")))
     out.extend(gap_blocks(folder, d))
     out.append(B.note("Decision rule: " + d.get("decision_rule", "")))
     return out

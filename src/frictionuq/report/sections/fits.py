@@ -31,6 +31,11 @@ def description_of(name: str) -> str:
     return d + (f" (test {name.split('[', 1)[1].rstrip(']')})" if "[" in name else "")
 
 
+def _count(v) -> str:
+    """An effective sample size, rounded to a whole number of draws."""
+    return f"{v:.0f}" if isinstance(v, (int, float)) and np.isfinite(v) else num(v)
+
+
 def _rules():
     from ...infer.fit import CONVERGENCE
     return CONVERGENCE
@@ -139,7 +144,10 @@ def convergence(ctx, f: dict) -> list[dict]:
             continue
         bad = not (p.get("r_hat", np.inf) <= rules["r_hat_max"] and p.get("ess_bulk", 0) >= rules["ess_min"]
                    and p.get("ess_tail", 0) >= rules["ess_min"])
-        rows.append([name, num(p.get("r_hat"), 4), num(p.get("ess_bulk"), 4), num(p.get("ess_tail"), 4),
+        rhat = p.get("r_hat")
+        # four decimals: the rule's 1.01 must not show as "1.01" on a value of 1.0105 that fails it
+        rows.append([name, f"{rhat:.4f}" if isinstance(rhat, (int, float)) and np.isfinite(rhat)
+                     else num(rhat), _count(p.get("ess_bulk")), _count(p.get("ess_tail")),
                      num(tau.get(name), 3) if name in tau else "not sampled (integrated out)",
                      badge("no" if bad else "yes", not bad)])
         classes.append("flagged" if bad else "")
@@ -197,6 +205,29 @@ def identifiability(f: dict) -> list[dict]:
     return [B.html(bullet_list(items)), B.note(f"Rule: {idf.get('rule', '')}")]
 
 
+_FIGURES = {"peak_N": ("peak force", 1e-3, "kN"), "trough_N": ("trough force", 1e-3, "kN"),
+            "energy_J": ("energy dissipated", 1e-3, "kJ")}
+
+
+def _prior_predictive(passed, pp) -> str:
+    """'passed', or 'FAILED' with the figures outside the prior predictive's central 98 %."""
+    if passed is None:
+        return DASH
+    if passed:
+        return "passed"
+    misses = []
+    for tid, figs in ((pp or {}).get("records") or {}).items():
+        for key, (label, fac, unit) in _FIGURES.items():
+            g = (figs or {}).get(key)
+            if isinstance(g, dict) and g.get("inside") is False:
+                misses.append(f"{tid}: {label} {scaled(g.get('measured'), fac)} {unit} measured, "
+                              f"outside the prior's 1-99 % range [{scaled(g.get('q1'), fac)}, "
+                              f"{scaled(g.get('q99'), fac)}] {unit}")
+        if (figs or {}).get("non_finite_draws"):
+            misses.append(f"{tid}: {figs['non_finite_draws']} prior draws gave no finite force")
+    return "FAILED" + (" (" + "; ".join(misses) + ")" if misses else "")
+
+
 def fit_blocks(ctx, f: dict) -> list[dict]:
     fid = f["id"]
     per = f.get("rmse_per_test") or {}
@@ -207,7 +238,8 @@ def fit_blocks(ctx, f: dict) -> list[dict]:
             ("likelihood", f.get("likelihood", DASH)),
             ("RMSE of the posterior-median model, all tests (kN)", scaled(f.get("rmse"), 1e-3)),
             *[(f"RMSE, test {t} (kN)", scaled(v, 1e-3)) for t, v in per.items()],
-            ("prior predictive check", {True: "passed", False: "FAILED"}.get(f.get("prior_predictive_passed"), DASH)),
+            ("prior predictive check", _prior_predictive(f.get("prior_predictive_passed"),
+                                                         rec.get("prior_predictive"))),
             ("seed", rec.get("seed", DASH))]
     dt = ctx.posterior(fid)
     out = [B.html(kv_table(info, caption="fit"))]

@@ -9,7 +9,7 @@ from ... import units as U
 from ...errors import InputError
 from ...infer.law import FORCE_DEPENDENT, LAW_FILE, law_values, load_law
 from .. import blocks as B
-from ..figures_levels import advantage_figure, across_figure
+from ..figures_levels import advantage_figure, across_figure, display
 from ..tables import DASH, interval, num, scaled, table
 
 LAW_GRID = 120
@@ -126,7 +126,7 @@ def across(ctx) -> list[dict]:
                             + (f"; {pub['_label']} (crosses)" if pub else "") + "."))
     rows = []
     for n in names:
-        fac, u = (1.0, "N/m") if n == "sigma0" else (1e-3, "kN")
+        fac, u, _ = display(n)
         row = [n, u]
         for L in levels:
             s = L["stats"].get(n)
