@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from . import atomic
-from .environment import environment
+from .environment import environment, png_metadata
 from .errors import InputError, check_draws, check_seed
 
 
@@ -85,19 +85,23 @@ def _figure(path, t, y, bands, title):
     ax.legend(fontsize=7, ncol=4, loc="upper right")
     fig.tight_layout()
     with atomic.replacing(path) as tmp:
-        fig.savefig(tmp, dpi=110, format="png")
+        fig.savefig(tmp, dpi=110, format="png", metadata=png_metadata())
     plt.close(fig)
 
 
 def validate(fit_dir, campaign_path, test_ids, out_dir, *, n_draws: int = 400, seed: int = 1,
              figures: bool = True, log=None) -> dict:
-    """Predict each held-out test (ids) of a campaign from a fit folder and score it."""
+    """Predict each held-out test (ids: a list, or one id as a string) of a campaign from a fit
+    folder and score it."""
     from . import __version__
     from .campaign import load_campaign
     from .fitdir import load_summary, not_converged
     from .noise import default_eps
     from .predict import fit_drive_lowpass, predict
     log = log or (lambda m: None)
+    test_ids = [test_ids] if isinstance(test_ids, str) else list(test_ids or ())
+    if not test_ids:
+        raise InputError("validate: no test given; name the held-out tests (--test ID)")
     check_seed(seed, "validate")
     check_draws(n_draws, "validate")
     camp = load_campaign(campaign_path)

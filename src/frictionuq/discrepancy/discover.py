@@ -232,6 +232,13 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
     if not (isinstance(jobs, int) and jobs >= 1):
         raise InputError(f"discover: jobs must be an integer >= 1, got {jobs!r}")
     from .. import params as P
+    if isinstance(effects, str):          # one name, not its letters
+        effects = (effects,)
+    if isinstance(extra_effects, str):
+        extra_effects = (extra_effects,)
+    unknown = [e for e in effects or () if e not in P.EFFECTS]
+    if unknown:
+        raise InputError(f"discover: unknown effect {unknown[0]!r}; known: {', '.join(P.EFFECTS)}")
     bad = [e for e in extra_effects if e not in P.BEYOND_SPEC]
     if bad:
         raise InputError(f"discover: extra effect {bad[0]!r} is not an effect beyond the spec's "

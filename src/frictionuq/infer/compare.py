@@ -276,8 +276,8 @@ def compare_campaign(campaign_path, out_dir, configs: dict[str, FitConfig] | Non
         raise InputError(f"compare: offset must be one of {OFFSET_MODES}, got {offset!r}")
     seed = check_seed(next(iter(configs.values())).seed if seed is None else seed, "compare")
     camp = load_campaign(campaign_path)
-    kinds = tuple(kinds) if kinds else None
-    tests = tuple(tests) if tests else None
+    kinds = ((kinds,) if isinstance(kinds, str) else tuple(kinds)) if kinds else None
+    tests = ((tests,) if isinstance(tests, str) else tuple(tests)) if tests else None
     if tests:
         known = {t.id for t in camp.tests}
         unknown = [t for t in tests if t not in known]

@@ -13,7 +13,7 @@ Layout of an output folder:
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -23,47 +23,13 @@ from ..environment import environment
 from ..errors import InputError, check_seed
 from ..units import from_si
 from . import drivefilter
-from .likelihood import NOISE_EFFECT_MIN_KEPT_HZ, SIMULATE_AT, LogPosterior, records_from_tests
+from .likelihood import SIMULATE_AT, LogPosterior, records_from_tests
 from .priors import apply_overrides, default_priors, record_scales
-from .sampler import SamplerConfig, sample
+from .config import FitConfig  # noqa: F401  (re-exported: its home until 2026-12-01)
+from .sampler import _nwalkers, sample
 from .space import Space
 
 CONVERGENCE = {"r_hat_max": 1.01, "ess_min": 400}
-
-
-@dataclass
-class FitConfig:
-    model: str = "three_stage"
-    effects: tuple[str, ...] = ()
-    likelihood: str = "ar1"
-    priors: dict = field(default_factory=dict)     # overrides; a number fixes the parameter
-    samples_per_cycle: float = 400.0
-    # the kept rate's floor (Hz); with a noise effect at least NOISE_EFFECT_MIN_KEPT_HZ
-    min_kept_hz: float | None = None
-    simulate_at: str = "raw"                       # "raw" or "kept" (infer.likelihood)
-    eps: float | str = "auto"
-    drive_lowpass: float | None = None             # infer.drivefilter; None: the raw displacement
-    kinds: tuple[str, ...] | None = None           # only tests of these kinds
-    tests: tuple[str, ...] | None = None           # only these test ids
-    sampler: SamplerConfig = field(default_factory=SamplerConfig)
-    seed: int = 1
-    n_predictive: int = 200
-
-    def to_json(self) -> dict:
-        d = asdict(self)
-        d["sampler"] = self.sampler.to_json()
-        return d
-
-    def record_options(self) -> dict:
-        """How each test's record is prepared (likelihood.records_from_tests keywords). With a
-        noise effect (chatter) no record is kept at less than NOISE_EFFECT_MIN_KEPT_HZ: the
-        anti-alias filter would take the chatter out of the slow tests only."""
-        floor = self.min_kept_hz
-        if set(self.effects) & P.NOISE_EFFECTS:
-            floor = max(floor or 0.0, NOISE_EFFECT_MIN_KEPT_HZ)
-        return {"samples_per_cycle": self.samples_per_cycle, "eps": self.eps,
-                "simulate_at": self.simulate_at, "drive_lowpass": self.drive_lowpass,
-                "min_kept_hz": floor}
 
 
 @dataclass
@@ -224,7 +190,8 @@ def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True
     from .. import azadapter
     azadapter.save(dt, fdir / "posterior.nc")
     entry = outputs.summary_entry(spec, logpost, res, dt, post, pred)
-    entry["seconds"] = time.perf_counter() - t0
+    # this session's wall time, plus the sampler's in the sessions before a resumed one
+    entry["seconds"] = time.perf_counter() - t0 + res.earlier_seconds
     entry["prior_predictive_passed"] = ppc["passed"]
     record = {"package_version": __version__, "environment": environment(),
               "campaign": campaign_name, "fit": spec.id,
@@ -240,7 +207,10 @@ def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True
                           "walkers": int(res.chain.shape[1]), "acceptance": res.acceptance,
                           "tau": dict(zip(space.names, map(float, res.tau))),
                           "converged_tau": res.converged_tau, "model_evaluations": res.n_evals,
-                          "seconds": res.seconds, "history": res.history},
+                          "seconds": res.seconds, "history": res.history,
+                          # model_evaluations, seconds and burn_in_phase_steps count every
+                          # session that wrote the chain; the stored step each resumed one began at
+                          "resumed_from_steps": res.resumed_from},
               "map": dict(zip(space.names, map(float, space.to_values(res.theta_map)))),
               "map_start": res.map_start,
               "log_prob_map": res.log_prob_map, "prior_predictive": ppc, "summary": entry}
@@ -270,7 +240,8 @@ def run_key(spec: FitSpec, space: Space, records) -> str:
 
 def fit_campaign(campaign_path, out_dir, by: str = "applied", config: FitConfig | None = None,
                  resume: bool = True, log=None, jobs: int = 1) -> dict:
-    """Fit every group of a campaign and write out_dir/summary.json.
+    """Fit every group of a campaign (a folder, or a Campaign from load_campaign) and write
+    out_dir/summary.json.
 
     jobs: processes for the fits (workers.Workers; one numba thread each). With jobs=1 they run
     here one after the other, the simulator on every core. With more, `jobs` fits run side by
@@ -281,13 +252,19 @@ def fit_campaign(campaign_path, out_dir, by: str = "applied", config: FitConfig 
     from ..workers import Workers
     jobs = Workers(jobs).jobs               # refused here, before any work, if not an int >= 1
     atomic.writable_parent(Path(out_dir) / "summary.json", create=False)   # out: a folder, or none yet
-    camp = load_campaign(campaign_path)
+    from ..campaign import Campaign
+    camp = campaign_path if isinstance(campaign_path, Campaign) else load_campaign(campaign_path)
+    campaign_path = camp.path if isinstance(campaign_path, Campaign) else campaign_path
     if Path(out_dir).resolve() == Path(campaign_path).resolve():
         raise InputError(f"--out {out_dir}: must differ from the campaign folder (the fits would "
                          "be written among its records)")
     specs = plan(camp, by, config)
-    for s in specs:               # every fit's priors checked before the first fit starts
-        build_space(s, record_scales([t.record for t in s.tests]))
+    for s in specs:               # every fit's priors and walkers checked before the first fit
+        space = build_space(s, record_scales([t.record for t in s.tests]))
+        try:
+            _nwalkers(s.config.sampler, space.ndim)
+        except ValueError as e:
+            raise InputError(f"fit {s.id}: sampler nwalkers: {e}") from None
     jobs = min(jobs, len(specs)) if specs else 1
     if jobs == 1:
         fits = [run_fit(s, out_dir, camp.name, resume, log) for s in specs]

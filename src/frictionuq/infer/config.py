@@ -1,0 +1,128 @@
+"""A fit's configuration (FitConfig): what frictionuq fit's options and a workflow's [fit]
+table set, checked at construction so that bad settings are refused before any work."""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from numbers import Integral, Real
+
+import numpy as np
+
+from .. import params as P
+from ..errors import InputError, check_seed
+from . import drivefilter
+from .likelihood import NOISE_EFFECT_MIN_KEPT_HZ, SIMULATE_AT
+from .sampler import SamplerConfig
+
+LIKELIHOODS = ("iid", "ar1", "arma")
+
+
+def _names(value, what: str) -> tuple[str, ...] | None:
+    """A tuple of names from a tuple/list, or from one string (one name, not its letters)."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        return (value,)
+    try:
+        out = tuple(value)
+    except TypeError:
+        raise InputError(f"fit config: {what} must be a list of names, got {value!r}") from None
+    if not all(isinstance(v, str) for v in out):
+        raise InputError(f"fit config: {what} must be a list of names (strings), got {value!r}")
+    return out
+
+
+def _positive(name: str, v, allow_none: bool = False) -> None:
+    if v is None and allow_none:
+        return
+    if isinstance(v, bool) or not isinstance(v, Real) or not np.isfinite(v) or v <= 0:
+        raise InputError(f"fit config: {name} must be a number > 0"
+                         + (" or None" if allow_none else "") + f", got {v!r}")
+
+
+@dataclass
+class FitConfig:
+    """How a campaign is fitted (frictionuq fit's options; a workflow's [fit] table).
+
+    model: "three_stage" or "lugre"; effects: names of the spec's effect library (one string is
+    one name); likelihood: "ar1" (default), "iid" or "arma"; priors: overrides {NAME: VALUE}
+    (fixes it), {NAME: {"dist": "uniform"|"loguniform", "lower", "upper"}} or {"dist": "normal",
+    "mu", "sd"[, "lower", "upper"]}, or the command line's text form {NAME: "uniform:LO:HI"} or
+    a list of "NAME=SPEC" strings, SI units; samples_per_cycle: the kept rate's multiple of the
+    dominant frequency (decimation); eps: the reversal dead band in m, or "auto" (the record's
+    estimator); tests / kinds: only these test ids / kinds; sampler: a SamplerConfig (or a dict
+    of its fields); seed: the sampler's seed. Checked at construction (InputError naming the
+    field), before any folder is made."""
+    model: str = "three_stage"
+    effects: tuple[str, ...] = ()
+    likelihood: str = "ar1"
+    priors: dict = field(default_factory=dict)     # overrides; a number fixes the parameter
+    samples_per_cycle: float = 400.0
+    # the kept rate's floor (Hz); with a noise effect at least NOISE_EFFECT_MIN_KEPT_HZ
+    min_kept_hz: float | None = None
+    simulate_at: str = "raw"                       # "raw" or "kept" (infer.likelihood)
+    eps: float | str = "auto"
+    drive_lowpass: float | None = None             # infer.drivefilter; None: the raw displacement
+    kinds: tuple[str, ...] | None = None           # only tests of these kinds
+    tests: tuple[str, ...] | None = None           # only these test ids
+    sampler: SamplerConfig = field(default_factory=SamplerConfig)
+    seed: int = 1
+    n_predictive: int = 200
+
+    def __post_init__(self):
+        from .priors import parse_prior_option, prior_options
+        if self.likelihood not in LIKELIHOODS:
+            raise InputError(f"fit config: likelihood must be one of {', '.join(LIKELIHOODS)}, "
+                             f"got {self.likelihood!r}")
+        self.effects = _names(self.effects, "effects") or ()
+        try:
+            P.check_effects({e: {} for e in self.effects}, self.model)
+        except ValueError as e:
+            raise InputError(f"fit config: {e}") from None
+        self.tests, self.kinds = _names(self.tests, "tests"), _names(self.kinds, "kinds")
+        if isinstance(self.priors, (list, tuple)):          # ["NAME=SPEC", ...], as --prior
+            self.priors = prior_options(self.priors)
+        elif isinstance(self.priors, dict):
+            self.priors = {k: (parse_prior_option(f"{k}={v}")[1] if isinstance(v, str) else v)
+                           for k, v in self.priors.items()}
+        else:
+            raise InputError(f"fit config: priors must be a dict of overrides, got {self.priors!r}")
+        _positive("samples_per_cycle", self.samples_per_cycle)
+        _positive("min_kept_hz", self.min_kept_hz, allow_none=True)
+        try:
+            drivefilter.check_multiple(self.drive_lowpass)
+        except ValueError as e:
+            raise InputError(f"fit: {e}") from None
+        if self.simulate_at not in SIMULATE_AT:
+            raise InputError(f"fit config: simulate_at must be one of {', '.join(SIMULATE_AT)}, "
+                             f"got {self.simulate_at!r}")
+        if self.eps != "auto":
+            if (isinstance(self.eps, bool) or not isinstance(self.eps, Real)
+                    or not np.isfinite(self.eps) or self.eps < 0):
+                raise InputError(f"fit config: eps must be 'auto' or a dead band in m >= 0, got "
+                                 f"{self.eps!r}")
+        if isinstance(self.sampler, dict):
+            self.sampler = SamplerConfig(**self.sampler)
+        elif not isinstance(self.sampler, SamplerConfig):
+            raise InputError(f"fit config: sampler must be a SamplerConfig (or a dict of its "
+                             f"fields), got {self.sampler!r}")
+        check_seed(self.seed, "fit")
+        if isinstance(self.n_predictive, bool) or not isinstance(self.n_predictive, Integral) \
+                or self.n_predictive < 0:
+            raise InputError(f"fit config: n_predictive must be an integer >= 0, got "
+                             f"{self.n_predictive!r}")
+
+    def to_json(self) -> dict:
+        d = asdict(self)
+        d["sampler"] = self.sampler.to_json()
+        return d
+
+    def record_options(self) -> dict:
+        """How each test's record is prepared (likelihood.records_from_tests keywords). With a
+        noise effect (chatter) no record is kept at less than NOISE_EFFECT_MIN_KEPT_HZ: the
+        anti-alias filter would take the chatter out of the slow tests only."""
+        floor = self.min_kept_hz
+        if set(self.effects) & P.NOISE_EFFECTS:
+            floor = max(floor or 0.0, NOISE_EFFECT_MIN_KEPT_HZ)
+        return {"samples_per_cycle": self.samples_per_cycle, "eps": self.eps,
+                "simulate_at": self.simulate_at, "drive_lowpass": self.drive_lowpass,
+                "min_kept_hz": floor}
