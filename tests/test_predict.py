@@ -308,6 +308,28 @@ def test_an_input_beyond_the_fitted_records_is_flagged(fit_dir, tmp_path, capsys
     assert doc["fitted_range"]["beyond"] == ["stroke", "peak speed"]
 
 
+def test_the_library_warns_where_the_cli_notes(fit_dir, tmp_path, capsys):
+    """predict() in a notebook warns (ResultWarning) of the unconverged fit and of an input
+    beyond the fitted range, which the CLI says in its own notes (and does not repeat)."""
+    from frictionuq.errors import ResultWarning
+    t, x = harmonic_input(AMP, FREQ)
+    with pytest.warns(ResultWarning, match="not converged"):
+        predict(fit_dir, 267.0, t, x, n_draws=20, seed=1, samples_per_cycle=200)
+    with pytest.warns(ResultWarning, match="beyond 1.5 times the fitted"):
+        predict(fit_dir, 267.0, t, 10 * x, n_draws=20, seed=1, samples_per_cycle=200)
+    # a measured record in memory: eps and the drive filter as predict --input takes them
+    from frictionuq.noise import default_eps
+    rng = np.random.default_rng(5)
+    xm = x + 2e-6 * rng.standard_normal(x.size)
+    with pytest.warns(ResultWarning):
+        p = predict(fit_dir, 267.0, t, xm, eps="auto", drive_lowpass="auto", n_draws=20, seed=1)
+    assert p.eps == pytest.approx(default_eps(xm)) and p.eps > 0
+    assert main(["predict", str(fit_dir), "--harmonic", f"{AMP},{FREQ}", "--applied", "0.267",
+                 "--out", str(tmp_path / "w"), "--draws", "20"]) == 0
+    err = capsys.readouterr().err
+    assert "ResultWarning" not in err and "note: the bands are drawn from fit(s) not converged" in err
+
+
 def test_results_from_unconverged_fits_say_so(fit_dir, tmp_path, capsys):
     """The fixture's fit is tiny and not converged: prediction.json and validation.json list it
     under not_converged_fits and the command line notes it (before, nothing outside the report

@@ -15,6 +15,12 @@ class InputError(ValueError):
         super().__init__(" ".join(str(message).split()))   # always one line
 
 
+class ResultWarning(UserWarning):
+    """A result the library returns rests on something its user should know: fits that did not
+    converge, or an input beyond the fitted records. The CLI prints its own one-line notes for
+    these (and ignores the warning); a notebook sees the warning."""
+
+
 def not_a_file(path) -> str | None:
     """Why `path` cannot be read as a file ("is a folder, not a file" or "file not found"), or
     None when it is one."""

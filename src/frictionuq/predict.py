@@ -197,15 +197,31 @@ class Prediction:
     F_model: np.ndarray
 
 
-def predict(fit_dir, applied_si: float, t, x, *, eps: float = 0.0, n_draws: int = 400, seed: int = 1,
-            include_offset: bool = False, applied_signal=None, samples_per_cycle: int | None = None,
-            summary: dict | None = None, drive_lowpass: float | None = None) -> Prediction:
+def predict(fit_dir, applied_si: float, t, x, *, eps: float | str = 0.0, n_draws: int = 400,
+            seed: int = 1, include_offset: bool = False, applied_signal=None,
+            samples_per_cycle: int | None = None, summary: dict | None = None,
+            drive_lowpass: float | str | None = None) -> Prediction:
     """Posterior predictive bands and per-cycle figures of the force for drive (t, x) (SI) at
     applied force `applied_si` (SI). samples_per_cycle: set for a generated harmonic.
-    drive_lowpass: the model runs on x low-passed like the fit's records (infer.drivefilter;
-    `fit_drive_lowpass(summary)` for a measured input); the bands keep the given x."""
+    eps: the reversal dead band (m): 0 for a clean generated drive, "auto" for a measured record
+    (noise.default_eps(x), as `predict --input` and `validate` use). drive_lowpass: the model runs
+    on x low-passed like the fit's records (infer.drivefilter); "auto" takes the fit's
+    (fit_drive_lowpass(summary), as for a measured input on the command line); the bands keep
+    the given x. Warns (errors.ResultWarning) when the draws come from fits that did not
+    converge or the input goes beyond BEYOND_FACTOR times the fitted stroke or peak speed."""
     check_draws(n_draws)
     check_seed(seed, "predict")
+    if isinstance(eps, str) or isinstance(drive_lowpass, str):
+        if (isinstance(eps, str) and eps != "auto") or (isinstance(drive_lowpass, str)
+                                                        and drive_lowpass != "auto"):
+            raise InputError(f"predict: eps and drive_lowpass take a number or 'auto', got "
+                             f"{eps!r}, {drive_lowpass!r}")
+        summary = summary if summary is not None else load_summary(fit_dir)
+        if eps == "auto":
+            from .noise import default_eps
+            eps = default_eps(np.asarray(x, float))
+        if drive_lowpass == "auto":
+            drive_lowpass = fit_drive_lowpass(summary)
     if not (math.isfinite(applied_si) and applied_si >= 0):
         raise InputError(f"applied force must be a finite number >= 0, got {applied_si!r}")
     t, x = np.asarray(t, float), np.asarray(x, float)
@@ -222,7 +238,24 @@ def predict(fit_dir, applied_si: float, t, x, *, eps: float = 0.0, n_draws: int 
     Fn = add_noise(Fm, draws, float(np.median(np.diff(t))), rng, include_offset,
                    gain=noise_gain(x, draws, eps))
     bounds = cycle_bounds(x, eps, samples_per_cycle)
+    _warn_about(fit_dir, draws, summary if summary is not None else load_summary(fit_dir), t, x)
     return Prediction(band_table(t, x, Fn, Fm), cycle_table(t, x, Fm, bounds), draws, eps, Fm)
+
+
+def _warn_about(fit_dir, draws, summary, t, x) -> None:
+    """ResultWarning for what the bands rest on (the CLI says the same in its notes)."""
+    import warnings
+    from .errors import ResultWarning
+    behind = draws.resting_on(summary)
+    bad = not_converged(summary, behind)
+    if bad:
+        warnings.warn(f"the bands are drawn from fit(s) not converged ({', '.join(bad)}): "
+                      "indicative only", ResultWarning, stacklevel=3)
+    rng = fitted_range(fit_dir, behind, t, x)
+    if rng["beyond"]:
+        warnings.warn(f"the input goes beyond {BEYOND_FACTOR} times the fitted records' "
+                      f"{' and '.join(rng['beyond'])}: the bands extrapolate the model",
+                      ResultWarning, stacklevel=3)
 
 
 def fit_drive_lowpass(summary: dict) -> float | None:

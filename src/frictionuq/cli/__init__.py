@@ -30,6 +30,10 @@ def _join_dash_values(argv: list[str]) -> list[str]:
 
 
 def main(argv=None) -> int:
+    import warnings
+    from ..errors import ResultWarning
+    # the commands print their own one-line notes for what a library user gets as a warning
+    warnings.filterwarnings("ignore", category=ResultWarning)
     parser = build_parser()
     args = parser.parse_args(_join_dash_values(list(sys.argv[1:] if argv is None else argv)))
     try:
