@@ -275,3 +275,21 @@ def test_shipped_arts_campaigns(name, n_tests):
         assert hashlib.sha256(raw).hexdigest() in readme
     levels_lb = sorted({round(U.from_si(t.applied, "applied", "lb")) for t in camp.tests})
     assert levels_lb == ([20, 22, 25, 35, 70, 80] if name.endswith("d1") else [0, 36])
+
+
+def test_geometry_is_written_in_the_same_order_in_every_process():
+    """The geometry keys were a set, so manifest.json and advantage.json wrote them in an order
+    that followed each process's string-hash seed: the same campaign gave other bytes (and a
+    stale pipeline task after a forced re-ingest). Two processes with different hash seeds."""
+    import os
+    code = ("import json; from frictionuq.campaign import parse_config; "
+            "d = {'name': 'g', 'units': {'time': 's', 'displacement': 'm', 'force': 'N', "
+            "'applied': 'N'}, 'geometry': {'C_design': 142.0, 'wrap_deg': 670.0, "
+            "'drum_radius': 0.15, 'damping_radius': 0.1, 'mu_design': 0.39}, "
+            "'tests': [{'id': 'a', 'file': 'a.csv', 'applied': 1.0, 'kind': 'harmonic'}]}; "
+            "print(json.dumps(parse_config(d, 'x.toml')['geometry']))")
+    outs = {subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                           env={**os.environ, "PYTHONHASHSEED": str(h)}).stdout for h in (1, 2, 3, 4)}
+    assert len(outs) == 1, outs
+    assert list(json.loads(outs.pop())) == ["drum_radius", "damping_radius", "wrap_deg",
+                                            "mu_design", "C_design"]

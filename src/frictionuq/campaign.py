@@ -35,7 +35,9 @@ KINDS = ("harmonic", "earthquake", "other")
 UNIT_KINDS = {"time": "time", "displacement": "displacement", "force": "force", "applied": "applied"}
 TOP_KEYS = {"name", "device", "description", "units", "geometry", "columns", "tests", "twin", "source"}
 TEST_KEYS = {"id", "file", "applied", "kind", "frequency_hz", "amplitude", "description"}
-GEOMETRY_KEYS = {"drum_radius", "damping_radius", "wrap_deg", "mu_design", "C_design"}
+# a tuple, not a set: the order the geometry is written in (manifest.json, advantage.json) is then
+# the same in every process (a set follows the per-process string hash seed)
+GEOMETRY_KEYS = ("drum_radius", "damping_radius", "wrap_deg", "mu_design", "C_design")
 COLUMN_KEYS = ("time", "displacement", "force", "applied")
 ID_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]*$")
 
