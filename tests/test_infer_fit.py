@@ -271,10 +271,23 @@ def test_a_stored_chain_resumes_only_under_the_same_configuration(tmp_path):
         fit_campaign(camp, tmp_path / out, by="test", config=c, log=lines.append)
         return lines, xr.open_dataset(tmp_path / out / "h267" / "posterior.nc", group="posterior")
 
+    import json
+
+    def sampler_record(out):
+        return json.loads((tmp_path / out / "h267" / "fit.json").read_text())["sampler"]
+
     fit("a", cfg)
+    first = sampler_record("a")
     more = replace(cfg, sampler=replace(samp, max_steps=200))
     lines, _ = fit("a", more)
     assert any("resuming from stored step 100" in m for m in lines), lines
+    # the resumed fit's record counts both sessions (before: the second session's alone, with
+    # no burn-in phase and nothing saying it was resumed)
+    second = sampler_record("a")
+    assert first["resumed_from_steps"] == [] and second["resumed_from_steps"] == [100]
+    assert second["burn_in_phase_steps"] == first["burn_in_phase_steps"] > 0
+    assert second["model_evaluations"] > first["model_evaluations"]
+    assert second["seconds"] > first["seconds"] and second["steps"] == 200
     for change in (dict(seed=2), dict(likelihood="iid")):
         other = replace(cfg, **change)
         import shutil

@@ -90,7 +90,7 @@ from .likelihood import N_STATS, LogPosterior, UnboundedPosterior
 from .localfit import gauss_newton_cov
 from .optimize import find_map
 from .proposal import IndependenceMove, Proposal, proposal_change
-from .storage import load_proposal, open_backend, store_proposal
+from .storage import load_account, load_proposal, open_backend, store_account, store_proposal
 from .priors import RecordScales
 from .walkers import initial_ball, pooled_states, profile_sides, reinitialise
 
@@ -179,6 +179,8 @@ class SampleResult:
     burn_in_steps: int = 0       # steps of the (unstored) burn-in phase
     history: list = field(default_factory=list)
     map_start: str = "search"    # "search" (find_map's multi-start) or "given" (polished from a start)
+    resumed_from: list = field(default_factory=list)   # stored step each resumed session began at
+    earlier_seconds: float = 0.0  # sampler seconds of the sessions before a resumed one
     # (draws, walkers, n_records, N_STATS): each record's residual sufficient statistics at
     # every kept draw (emcee blobs; outputs draws the noise parameters from them)
     noise_stats: np.ndarray | None = None
@@ -323,6 +325,13 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
     history = []
     converged = False
     n_done = resumed
+    # the bookkeeping of the sessions before this one (a resumed fit counts them too)
+    account = load_account(backend) if resumed else {"burn_in_steps": burn_in_steps,
+                                                     "evaluations": 0, "seconds": 0.0,
+                                                     "resumed_from": []}
+    if resumed:
+        account["resumed_from"].append(int(resumed))
+    before = dict(account)
     if backend is not None:
         backend.keep_open()
     try:
@@ -330,9 +339,19 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
     finally:
         if backend is not None:
             backend.close()
+        # written even when interrupted, so that the next session adds to it
+        from .. import __version__
+        store_account(backend, {**before, "evaluations": before["evaluations"] + logpost.n_evals,
+                                "seconds": before["seconds"] + time.perf_counter() - t0},
+                      __version__, seed)
     intr.check()              # one noted after the last chunk: the chain is stored, resumable
-    return _result(sampler, cfg, sp, n_done, converged, theta_map, lp_map, logpost, t0,
-                   burn_in_steps, history, map_info["start"])
+    res = _result(sampler, cfg, sp, n_done, converged, theta_map, lp_map, logpost, t0,
+                  account["burn_in_steps"], history, map_info["start"])
+    res.n_evals += before["evaluations"]
+    res.seconds += before["seconds"]
+    res.earlier_seconds = before["seconds"]
+    res.resumed_from = list(account["resumed_from"])
+    return res
 
 
 def run_steps(sampler, state, n: int, progress=False, intr: Interrupts | None = None):

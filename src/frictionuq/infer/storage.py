@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import emcee
+import numpy as np
 
 from .proposal import Proposal
 
@@ -108,3 +109,38 @@ def load_proposal(backend):
         if "proposal_marginals" not in a:
             return None
         return Proposal.from_attrs(a)
+
+
+#: the fit's bookkeeping over every session that wrote the chain (a resumed fit continues it):
+#: steps of the burn-in phase (run once, before the stored run), model evaluations and seconds
+#: of the sessions before this one, and the stored step each later session resumed from
+ACCOUNT_KEYS = ("account_burn_in_steps", "account_evaluations", "account_seconds")
+
+
+def load_account(backend) -> dict:
+    """{burn_in_steps, evaluations, seconds, resumed_from: [steps]} of the sessions so far."""
+    if backend is None:
+        return {"burn_in_steps": 0, "evaluations": 0, "seconds": 0.0, "resumed_from": []}
+    with backend.open() as f:
+        a = f[backend.name].attrs
+        return {"burn_in_steps": int(a.get("account_burn_in_steps", 0)),
+                "evaluations": int(a.get("account_evaluations", 0)),
+                "seconds": float(a.get("account_seconds", 0.0)),
+                "resumed_from": [int(v) for v in a.get("account_resumed_from", [])]}
+
+
+def store_account(backend, account: dict, package_version: str | None = None,
+                  seed: int | None = None) -> None:
+    """Write the bookkeeping (load_account's dict) and what made the chain into the file."""
+    if backend is None:
+        return
+    with backend.open("a") as f:
+        a = f[backend.name].attrs
+        a["account_burn_in_steps"] = int(account["burn_in_steps"])
+        a["account_evaluations"] = int(account["evaluations"])
+        a["account_seconds"] = float(account["seconds"])
+        a["account_resumed_from"] = np.asarray(account["resumed_from"], dtype=np.int64)
+        if package_version is not None:
+            a["frictionuq_version"] = package_version
+        if seed is not None:
+            a["seed"] = int(seed)
