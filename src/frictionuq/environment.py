@@ -19,8 +19,10 @@ from functools import lru_cache
 from importlib import metadata
 
 #: the distributions whose versions can change a result (numerics, sampler, posterior summaries)
-PACKAGES = ("numpy", "scipy", "numba", "llvmlite", "emcee", "arviz", "arviz-stats", "pandas",
-            "xarray")
+#: or the files that hold it (arviz-base writes the netCDF through h5netcdf / h5py; matplotlib
+#: the figures)
+PACKAGES = ("numpy", "scipy", "numba", "llvmlite", "emcee", "arviz", "arviz-base", "arviz-stats",
+            "arviz-plots", "pandas", "xarray", "h5py", "h5netcdf", "matplotlib")
 
 
 def _version(dist: str) -> str | None:
@@ -79,3 +81,10 @@ def _numba_threads() -> int | None:
         return int(numba.get_num_threads())
     except Exception:       # noqa: BLE001
         return None
+
+
+def png_metadata() -> dict:
+    """PNG text chunks of a figure frictionuq writes: the package version beside matplotlib's
+    (a figure saved next to its JSON names the version that drew it)."""
+    from . import __version__
+    return {"Software": f"frictionuq {__version__} with matplotlib {_version('matplotlib')}"}

@@ -13,6 +13,8 @@ import math
 
 import numpy as np
 
+from ..environment import png_metadata
+
 #: feature -> (display factor from SI, axis label)
 AXES = {
     "displacement": (1e3, "displacement x (mm)"),
@@ -137,7 +139,7 @@ def residual_figure(diag: dict, path=None, title: str | None = None, dpi: int = 
     fig = build_figure(diag, title)
     try:
         buf = io.BytesIO()
-        fig.savefig(buf, format="png", dpi=dpi)
+        fig.savefig(buf, format="png", dpi=dpi, metadata=png_metadata())
     finally:
         pyplot.close(fig)
     data = buf.getvalue()
@@ -178,7 +180,7 @@ def loop_figure(t, x, y, models: dict, title: str, dpi: int = 90) -> bytes:
         fig.suptitle(title, fontsize=10)
         fig.tight_layout(rect=(0, 0, 1, 0.94))
         buf = io.BytesIO()
-        fig.savefig(buf, format="png", dpi=dpi)
+        fig.savefig(buf, format="png", dpi=dpi, metadata=png_metadata())
     finally:
         pyplot.close(fig)
     return buf.getvalue()

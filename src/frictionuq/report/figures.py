@@ -13,6 +13,8 @@ import math
 
 import numpy as np
 
+from ..environment import png_metadata
+
 DPI = 90
 WIDTH = 11.0                 # inches: 990 px at DPI, the report's content width
 MAX_POINTS = 5000            # at most this many points per plotted line
@@ -36,7 +38,7 @@ def png(fig, dpi: int = DPI) -> bytes:
     pyplot = plt()
     try:
         buf = io.BytesIO()
-        fig.savefig(buf, format="png", dpi=dpi)
+        fig.savefig(buf, format="png", dpi=dpi, metadata=png_metadata())
         return buf.getvalue()
     finally:
         pyplot.close(fig)
