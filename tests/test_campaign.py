@@ -293,3 +293,14 @@ def test_geometry_is_written_in_the_same_order_in_every_process():
     assert len(outs) == 1, outs
     assert list(json.loads(outs.pop())) == ["drum_radius", "damping_radius", "wrap_deg",
                                             "mu_design", "C_design"]
+
+
+def test_table_flags_a_stroke_no_damper_test_has(tmp_path, capsys):
+    """Millimetres declared as metres load as a 20 m stroke; the table says so under the rows
+    (frictionuq.quality), before anyone fits it."""
+    camp = make_campaign(tmp_path / "c", disp="m")            # the CSVs hold +-10 (mm)
+    code, out, _ = run_cli(["table", str(camp)], capsys)
+    assert code == 0
+    assert "flags: h1:" in out and "check the campaign's displacement unit" in out
+    code, out, _ = run_cli(["table", str(make_campaign(tmp_path / "ok"))], capsys)
+    assert code == 0 and "displacement unit" not in out

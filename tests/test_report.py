@@ -22,7 +22,7 @@ from frictionuq.campaign import Record
 from frictionuq.campaign import Test as CampaignTest
 from browser import check_report_in_browser, chromium_path
 from frictionuq.report import SECTIONS, render_report
-from frictionuq.report.sections import campaign as campaign_section
+from frictionuq.quality import quality
 from frictionuq.report.sections import comparison
 from frictionuq.report.tables import num, table
 
@@ -108,16 +108,20 @@ def _test(x, f, kind="harmonic", freq=1.0):
 def test_quality_flags_clipping_few_reversals_and_clean_records():
     t = np.arange(2000) / 100.0
     x = 0.02 * np.sin(2 * np.pi * 1.0 * t)
-    q = campaign_section.quality(_test(x, 1e3 * np.sign(np.cos(2 * np.pi * t)) + np.sin(t)))
+    q = quality(_test(x, 1e3 * np.sign(np.cos(2 * np.pi * t)) + np.sin(t)))
     assert q["flags"] == [] and q["applied_channel"] is False
     assert q["reversals"] == pytest.approx(q["expected_reversals"], abs=2)
     f = np.clip(5e3 * np.sin(2 * np.pi * t), -2e3, 2e3)           # saturated load cell
     rng = np.random.default_rng(0)
-    q = campaign_section.quality(_test(x + 1e-6 * rng.standard_normal(x.size), f))
+    q = quality(_test(x + 1e-6 * rng.standard_normal(x.size), f))
     assert any("force looks clipped" in s for s in q["flags"]), q["flags"]
     slow = 0.02 * np.sin(2 * np.pi * 0.02 * t)                    # says 1 Hz, moves at 0.02 Hz
-    q = campaign_section.quality(_test(slow + 1e-6 * rng.standard_normal(t.size), np.sin(t)))
+    q = quality(_test(slow + 1e-6 * rng.standard_normal(t.size), np.sin(t)))
     assert any("very few reversals" in s for s in q["flags"]), q["flags"]
+    # millimetres read as metres: a 40 m stroke is flagged, not fitted silently
+    q = quality(_test(1e3 * x + 1e-3 * rng.standard_normal(x.size),
+                                       1e3 * np.sign(np.cos(2 * np.pi * t))))
+    assert any("check the campaign's displacement unit" in s for s in q["flags"]), q["flags"]
 
 
 # ---------------------------------------------------------------- the rendered report

@@ -85,5 +85,10 @@ def campaign_table(path, published: str = "none", eps="auto") -> str:
                 "residual (force offset); NRMSE = RMSE / std of the measured force. The published "
                 "parameters are the paper's own prototype tests; calibrating them to these records "
                 "is the next stage (Bayesian calibration).")
+    from .quality import quality
+    flags = [f"flags: {te.id}: {'; '.join(q['flags'])}" for te in camp.tests
+             if (q := quality(te))["flags"]]
+    if flags:
+        note += "\n" + "\n".join(flags)
     with pd.option_context("display.width", 250, "display.max_columns", 40, "display.max_rows", 500):
         return head + "\n" + df.to_string(index=False, na_rep="-", float_format=lambda v: f"{v:.4g}") + note
