@@ -348,3 +348,17 @@ def test_matches_oracle_over_the_parameter_box_except_tiny_d2(p, rec, model, eps
     if "stage2_nonlinear" in eff and 0.0 < p["d2"] < 1e-12:
         p = p | {"d2": 0.0}
     _check_against_oracle(p, rec, model, eps, eff)
+
+
+def test_a_pandas_series_is_taken_and_a_list_is_refused_with_the_form():
+    """A notebook passes posterior means as a pandas Series: taken as the mapping it is. A list
+    of values (or of effect names) is refused saying what form is expected (before: 'unknown
+    parameter 805.0' and an AttributeError)."""
+    import pandas as pd
+    from frictionuq.published import brfd_params
+    p = brfd_params(133.0)
+    np.testing.assert_array_equal(P.pack(pd.Series(p)), P.pack(p))
+    with pytest.raises(ValueError, match=r"params must be a mapping \{name: value\}.*got a list"):
+        P.pack(list(p.values()))
+    with pytest.raises(ValueError, match=r"effects must be a mapping \{effect: \{parameter"):
+        P.pack(p, effects=["thermal_fade"])

@@ -165,13 +165,25 @@ def check_value(name: str, value) -> float:
     return v
 
 
+def _mapping(value, what: str, form: str) -> Mapping:
+    """`value` as a mapping: a dict, or anything with .items() of (name, value) pairs (a pandas
+    Series of posterior means); a list or array is refused with the form expected."""
+    if isinstance(value, Mapping):
+        return value
+    if hasattr(value, "items") and hasattr(value, "index"):        # a pandas Series
+        return dict(value.items())
+    raise ValueError(f"{what} must be a mapping {form}, got a {type(value).__name__}")
+
+
 def check_effects(effects: Mapping[str, Mapping[str, float]] | None, model: str = "three_stage"
                   ) -> dict[str, dict[str, float]]:
     """Validate an effects mapping {effect: {param: value}}; missing parameters take defaults."""
     if model not in MODELS:
         raise ValueError(f"unknown model {model!r}; use one of: {', '.join(MODELS)}")
     out: dict[str, dict[str, float]] = {}
-    for eff, values in (effects or {}).items():
+    effects = _mapping(effects or {}, "effects", "{effect: {parameter: value}}, e.g. "
+                       "{'thermal_fade': {'kappa': 0.2, 'e_fade': 1e4}}")
+    for eff, values in effects.items():
         if eff not in EFFECTS:
             raise ValueError(f"unknown effect {eff!r}; known: {', '.join(EFFECTS)}")
         if model != "three_stage" and eff in NEEDS_BACKLASH:
@@ -193,6 +205,7 @@ def pack(params: Mapping[str, float], effects: Mapping[str, Mapping[str, float]]
     the noise effects' parameters) are accepted and ignored; anything else is refused. A noise
     effect in `effects` is validated and does not change the vector.
     """
+    params = _mapping(params, "params", "{name: value}, e.g. {'fc_fwd': 1200.0, ...}")
     vec = np.empty(len(VECTOR_NAMES))
     for name in params:
         if name not in PARAMS or PARAMS[name].kind == "effect":
