@@ -211,17 +211,15 @@ def predict(fit_dir, applied_si: float, t, x, *, eps: float | str = 0.0, n_draws
     converge or the input goes beyond BEYOND_FACTOR times the fitted stroke or peak speed."""
     check_draws(n_draws)
     check_seed(seed, "predict")
-    if isinstance(eps, str) or isinstance(drive_lowpass, str):
-        if (isinstance(eps, str) and eps != "auto") or (isinstance(drive_lowpass, str)
-                                                        and drive_lowpass != "auto"):
-            raise InputError(f"predict: eps and drive_lowpass take a number or 'auto', got "
-                             f"{eps!r}, {drive_lowpass!r}")
-        summary = summary if summary is not None else load_summary(fit_dir)
-        if eps == "auto":
-            from .noise import default_eps
-            eps = default_eps(np.asarray(x, float))
-        if drive_lowpass == "auto":
-            drive_lowpass = fit_drive_lowpass(summary)
+    for name, v in (("eps", eps), ("drive_lowpass", drive_lowpass)):
+        if isinstance(v, str) and v != "auto":
+            raise InputError(f"predict: {name} takes a number or 'auto', got {v!r}")
+    summary = summary if summary is not None else load_summary(fit_dir)
+    if eps == "auto":
+        from .noise import default_eps
+        eps = default_eps(np.asarray(x, float))
+    if drive_lowpass == "auto":
+        drive_lowpass = fit_drive_lowpass(summary)
     if not (math.isfinite(applied_si) and applied_si >= 0):
         raise InputError(f"applied force must be a finite number >= 0, got {applied_si!r}")
     t, x = np.asarray(t, float), np.asarray(x, float)
@@ -238,7 +236,7 @@ def predict(fit_dir, applied_si: float, t, x, *, eps: float | str = 0.0, n_draws
     Fn = add_noise(Fm, draws, float(np.median(np.diff(t))), rng, include_offset,
                    gain=noise_gain(x, draws, eps))
     bounds = cycle_bounds(x, eps, samples_per_cycle)
-    _warn_about(fit_dir, draws, summary if summary is not None else load_summary(fit_dir), t, x)
+    _warn_about(fit_dir, draws, summary, t, x)
     return Prediction(band_table(t, x, Fn, Fm), cycle_table(t, x, Fm, bounds), draws, eps, Fm)
 
 

@@ -111,14 +111,10 @@ def load_proposal(backend):
         return Proposal.from_attrs(a)
 
 
-#: the fit's bookkeeping over every session that wrote the chain (a resumed fit continues it):
-#: steps of the burn-in phase (run once, before the stored run), model evaluations and seconds
-#: of the sessions before this one, and the stored step each later session resumed from
-ACCOUNT_KEYS = ("account_burn_in_steps", "account_evaluations", "account_seconds")
-
-
 def load_account(backend) -> dict:
-    """{burn_in_steps, evaluations, seconds, resumed_from: [steps]} of the sessions so far."""
+    """The fit's bookkeeping over the sessions that wrote the chain so far (a resumed fit
+    continues it): {burn_in_steps (the burn-in phase, run once before the stored run),
+    evaluations, seconds, resumed_from: [the stored step each later session began at]}."""
     if backend is None:
         return {"burn_in_steps": 0, "evaluations": 0, "seconds": 0.0, "resumed_from": []}
     with backend.open() as f:

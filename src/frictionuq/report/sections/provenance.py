@@ -76,15 +76,14 @@ def build(ctx, generated: str) -> list[dict]:
                          num(t.get("seconds"), 3), t.get("key") or DASH, t.get("error") or ""])
             classes.append("" if ok else "flagged")
         total = sum(float(t.get("seconds") or 0) for t in tasks)
-        end = prov.get("finished") or generated       # a report written by the run: its own time
-        wall = _wall_seconds(prov.get("started"), end)
+        wall = _wall_seconds(prov.get("started"), prov.get("finished") or generated)
         out.append(B.html(table(["task", "stage", "status", "run time (s)", "cache key", "error"],
                                 rows, row_classes=classes,
-                                caption=f"tasks (their run times add up to {num(total, 4)} s; tasks "
-                                        "run side by side with -j, so the run's wall time is "
-                                        + (f"{num(wall, 4)} s, from the start to "
-                                           + ("the finish)" if prov.get("finished") else "this report)")
-                                           if wall is not None else "shorter)"))))
+                                caption=f"tasks (their run times add up to {num(total, 4)} s"
+                                        + ("" if wall is None else
+                                           f"; the run had taken {num(wall, 4)} s when this "
+                                           "record was written, tasks running side by side "
+                                           "with -j") + ")")))
     else:
         out.append(B.note("No task record."))
     config = wf.get("config") if isinstance(wf.get("config"), dict) else ctx.workflow
