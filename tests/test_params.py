@@ -362,3 +362,17 @@ def test_a_pandas_series_is_taken_and_a_list_is_refused_with_the_form():
         P.pack(list(p.values()))
     with pytest.raises(ValueError, match=r"effects must be a mapping \{effect: \{parameter"):
         P.pack(p, effects=["thermal_fade"])
+
+
+def test_the_pure_lugre_model_needs_no_backlash_parameters():
+    """model="lugre" never reads k2, d2, k3, d3, w: they may be left out (the force is the same
+    as with any values of them); the 3-stage model still requires them."""
+    from frictionuq.published import brfd_params
+    p = brfd_params(133.0)
+    t = np.arange(0, 4, 0.01)
+    x = 0.02 * np.sin(2 * np.pi * 0.5 * t)
+    lugre_only = {k: v for k, v in p.items() if k not in P.LUGRE_UNUSED}
+    np.testing.assert_array_equal(simulate(t, x, lugre_only, model="lugre"),
+                                  simulate(t, x, {**p, "d2": 0.01, "k3": 1.0}, model="lugre"))
+    with pytest.raises(ValueError, match="missing parameter 'k2'"):
+        simulate(t, x, lugre_only)

@@ -140,6 +140,9 @@ NOISE_EFFECTS = frozenset(_p.effect for _p in _NOISE_EFFECT_PARAMS)
 NEEDS_BACKLASH = frozenset({"stage2_nonlinear", "takeup_overshoot"})
 
 MODELS = ("three_stage", "lugre")
+#: the backlash parameters the pure LuGre model never reads (spec section 4: F = F1), with the
+#: values pack gives them when a caller of model "lugre" leaves them out (no backlash)
+LUGRE_UNUSED = {"k2": 0.0, "d2": 0.0, "k3": 0.0, "d3": 0.0, "w": 1e-3}
 
 
 def neutral_vector() -> np.ndarray:
@@ -213,6 +216,9 @@ def pack(params: Mapping[str, float], effects: Mapping[str, Mapping[str, float]]
             raise ValueError(f"unknown parameter {name!r}{hint}; the simulator's parameters: "
                              f"{', '.join(BASE_NAMES)}")
     for name in BASE_NAMES:
+        if name not in params and model == "lugre" and name in LUGRE_UNUSED:
+            vec[INDEX[name]] = LUGRE_UNUSED[name]      # the pure LuGre model has no backlash
+            continue
         if name not in params:
             raise ValueError(f"missing parameter {name!r} ({PARAMS[name].description}, "
                              f"{PARAMS[name].unit})")
