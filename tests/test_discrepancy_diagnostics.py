@@ -168,8 +168,10 @@ def test_signature_lights_its_expected_view(record, effect):
     """AR(1) noise (one seed) plus the effect's term at 1-3 % of fc (rms 190-710 N against 300 N
     of noise), alpha = 0.01 family-wise, 999 permutations. Offline, every assertion below held on
     20/20 other noise seeds, and the expected views were still found on 9-12 of 12 seeds at half
-    these sizes (speed_weakening, added later: 20/20 on seeds 20-39, half size not measured): a
-    correct implementation fails on this seed with a probability of a few % at most. The views a term does not touch stay quiet (false alarm below alpha = 0.01 each). On a
+    these sizes (speed_weakening, added later: 20/20 on seeds 20-39, half size not measured): the
+    probability that a correct implementation fails on a seed is below 14 % with one-sided 95 %
+    confidence (Clopper-Pearson upper bound for 0 of 20), and probably far below given the
+    half-size margins; at this fixed seed the test passes or fails on every run. The views a term does not touch stay quiet (false alarm below alpha = 0.01 each). On a
     constant-amplitude sine, x, v and s are all functions of the phase given the direction, so a
     phase-locked effect lights displacement and since_reversal together (and often velocity)."""
     t, x, p, _, ft = record
@@ -201,7 +203,8 @@ def test_simulated_eccentricity_found_by_the_spectrum(record):
     160 N rms, not 0.02 fc = 750 N amplitude (which is why the spectrum sums per-direction
     periodograms). One seed: p = 0.001 (smallest attainable), peak ratio 20 against a critical
     7; offline 15/15 other noise seeds passed (wavelength 7.7-8.0 mm), so a correct
-    implementation fails with a probability of a few % at most."""
+    implementation fails on a seed with a probability below 18 % at one-sided 95 % confidence
+    (Clopper-Pearson for 0 of 15); at this fixed seed it passes or fails on every run."""
     t, x, p, force, ft = record
     data = frictionuq.simulate(t, x, p, effects={"eccentricity": {"eps_ecc": 0.02, "l_ecc": 8e-3}})
     r = data - force + _noise(11, x.size)

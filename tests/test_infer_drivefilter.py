@@ -126,7 +126,18 @@ def test_fit_records_the_setting_and_predict_filters_a_measured_input_alike(fit_
     b = pd.read_csv(root / "p" / "bands.csv")
     np.testing.assert_allclose(b["displacement"], x, rtol=1e-8, atol=1e-12)   # %.9g in the CSV
     xm = lowpass_drive(t, pd.read_csv(X)["displacement"].to_numpy(), 20.0)[0]
-    assert np.std(xm - x) > 0.5e-6                  # it did filter (the noise sd is 3e-6)
+    assert np.std(xm - x) > 0.5e-6                  # the filter changes this drive (noise sd 3e-6)
+    # ... and the prediction's model ran on the filtered drive: its median is the library's
+    # predict() with the fit's filter, not without it
+    from frictionuq.noise import default_eps
+    from frictionuq.predict import predict
+    xc = pd.read_csv(X)["displacement"].to_numpy()
+    kw = dict(eps=default_eps(xc), n_draws=20, seed=1)
+    a_si = meta["applied"]["si"]
+    filt = predict(fit, a_si, t, xc, drive_lowpass=20.0, **kw).bands["force_model_median"]
+    raw = predict(fit, a_si, t, xc, drive_lowpass=None, **kw).bands["force_model_median"]
+    np.testing.assert_allclose(b["force_model_median"], filt, rtol=1e-8, atol=1e-6)
+    assert np.max(np.abs(b["force_model_median"] - raw)) > 1e3 * np.max(np.abs(b["force_model_median"] - filt))
     h = write_prediction(fit, root / "h", harmonic=(AMP, 0.5), applied=1000, n_draws=20)
     assert h["input"]["drive_lowpass"] is None        # a generated sine is clean
     from frictionuq.validate import validate

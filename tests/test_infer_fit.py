@@ -2,9 +2,14 @@
 0.2 Hz sine at 100 Hz (3 cycles), add white noise (1 % of fc) plus an AR(1) part, fit with the
 default priors and sampler, and check that the fit converged by the project's rule (R-hat <= 1.01,
 bulk and tail ESS >= 400 for every free parameter) and that the 95 % intervals contain the true
-values. With 14 free parameters, about 0.7 of them fall outside their 95 % intervals by chance
-(more than 2: about 3 % for independent intervals), so at most 2 may miss; the run is seeded,
-hence deterministic. Takes a few minutes on 2 cores: marked slow."""
+values. With 14 free parameters, about 0.7 of them fall outside their 95 % intervals by chance,
+so at most 2 may miss. For independent, calibrated intervals more than 2 misses has a
+probability of about 3 %; that is a lower bound here, not the rate: the intervals are
+correlated (which widens the spread of the miss count) and the noise is white plus AR(1) (an
+ARMA(1,1)), fitted with the default AR(1) likelihood, which test_infer_arma shows to be
+somewhat overconfident on that class. The rate is not measured for this single seeded case (it
+is deterministic: it passes or fails on every run); the calibrated check with a measured rate
+is test_stat_recovery (140 intervals over both devices). Takes a few minutes on 2 cores: slow."""
 from __future__ import annotations
 
 import json
@@ -276,8 +281,11 @@ def test_a_stored_chain_resumes_only_under_the_same_configuration(tmp_path):
     def sampler_record(out):
         return json.loads((tmp_path / out / "h267" / "fit.json").read_text())["sampler"]
 
-    fit("a", cfg)
+    _, post = fit("a", cfg)
     first = sampler_record("a")
+    # every posterior variable carries its unit (CF "units"), for a reader of one variable
+    assert post["fc_fwd"].attrs["units"] == "N" and post["sigma_noise"].attrs["units"] == "N"
+    assert post["noise_phi"].attrs["units"] == "1" and "friction" in post["fc_fwd"].attrs["long_name"]
     more = replace(cfg, sampler=replace(samp, max_steps=200))
     lines, _ = fit("a", more)
     assert any("resuming from stored step 100" in m for m in lines), lines

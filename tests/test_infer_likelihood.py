@@ -262,6 +262,8 @@ def test_interrupted_run_resumes_without_losing_steps(small_fit, tmp_path):
     assert after.shape[0] == 60 and np.array_equal(after[:40], first)
     assert np.array_equal(after, emcee.backends.HDFBackend(str(tmp_path / "full.h5"), read_only=True).get_chain())
     assert res.n_steps == full.n_steps == 60
+    # resumed, not recomputed from the same seed (which would give the same chain too)
+    assert res.resumed_from == [40] and full.resumed_from == []
 
 
 def test_independent_chains_run_reproduces_and_resumes(small_fit, tmp_path):
@@ -283,6 +285,8 @@ def test_independent_chains_run_reproduces_and_resumes(small_fit, tmp_path):
     assert np.array_equal(full.chain, again.chain)
     part = tmp_path / "part.h5"
     sample(lp, scales, seed=3, backend_path=part, cfg=SamplerConfig(max_steps=40, **kw), resume=False)
-    sample(lp, scales, seed=3, backend_path=part, cfg=SamplerConfig(max_steps=60, **kw), resume=True)
+    res = sample(lp, scales, seed=3, backend_path=part, cfg=SamplerConfig(max_steps=60, **kw),
+                 resume=True)
+    assert res.resumed_from == [40]          # resumed, not recomputed from the same seed
     after = emcee.backends.HDFBackend(str(part), read_only=True).get_chain()
     assert np.array_equal(after, emcee.backends.HDFBackend(str(tmp_path / "full.h5"), read_only=True).get_chain())

@@ -249,7 +249,10 @@ def effect_sets(draw, model):
     return eff
 
 
-SETTINGS = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow])
+# derandomize: the same examples on every run and machine (a property test is still a search,
+# but one whose failure reproduces: the project's tests use fixed seeds)
+SETTINGS = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True,
+                database=None)
 
 
 def _term_scale(p, Fo, tr, x, t):

@@ -90,10 +90,8 @@ def test_first_run_then_noop(first_run):
     prov = json.loads((wf.out / "run.json").read_text())
     assert prov["workflow"]["sha256"] == wf.sha256 and prov["seed"] == 3
     assert {t["status"] for t in prov["tasks"]} == {"ran"}
-    t0 = time.perf_counter()
     again = run(load_workflow(wf.path))
     assert again.ran == [] and set(again.cached) == set(plan(wf))
-    assert time.perf_counter() - t0 < 20
 
 
 def test_changing_one_test_or_one_setting_reruns_only_its_dependents(first_run):
@@ -209,9 +207,13 @@ def test_killed_run_resumes_its_fit(tmp_path):
     text = log.read_text()
     assert "resuming in" in text, text[:2000]
     # the chain resumes, unless the kill landed inside an HDF5 write and left the file's data
-    # unreadable: then the fit says so and starts afresh (it must never fail on it)
+    # unreadable: then the fit says so and starts afresh (it must never fail on it). Only an
+    # I/O error counts as unreadable (storage.UNREADABLE): a bug in the resume code raises
+    # instead of passing as one
+    from frictionuq.infer.storage import UNREADABLE
+    io_error = any(f"unreadable ({e.__name__}" in text for e in UNREADABLE)
     assert ("resuming from stored step" in text
-            or ("unreadable" in text and "starting afresh" in text)), text[:3000]
+            or (io_error and "starting afresh" in text)), text[:3000]
 
 
 def test_fits_on_a_dask_localcluster(first_run):

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import azadapter
+from .. import azadapter, params as P
 from . import noisemodel
 
 WEAK_CONTRACTION = 0.5       # posterior sd / prior sd above this: "close to the prior"
@@ -94,7 +94,7 @@ def datatree(logpost, post, pred, attrs: dict):
     attrs.update(units="SI: force N, displacement m, time s; parameters in their SI units",
                  log_likelihood="per test: log marginal likelihood of the whole record, noise "
                                 "parameters integrated out (tests are the held-out units)")
-    return azadapter.build(
+    dt = azadapter.build(
         posterior,
         sample_stats={"lp": post["log_prob"]},
         log_likelihood={"force_per_test": post["loglik_records"]},
@@ -104,6 +104,19 @@ def datatree(logpost, post, pred, attrs: dict):
               "test_of_obs": ["obs"]},
         coords={"test": [r.id for r in recs], "obs": np.arange(observed["force"].size)},
         attrs=attrs)
+    # each variable's own unit (CF's "units" attribute), for a reader who opens one variable
+    for name in posterior:
+        base = name.split("[", 1)[0]
+        if base in P.PARAMS:
+            dt["posterior"][name].attrs["units"] = P.PARAMS[base].unit
+            dt["posterior"][name].attrs["long_name"] = P.PARAMS[base].description
+    for group, var, unit in (("observed_data", "force", "N"), ("posterior_predictive", "force", "N"),
+                             ("posterior_predictive", "force_model", "N"),
+                             ("constant_data", "time", "s"), ("constant_data", "displacement", "m"),
+                             ("log_likelihood", "force_per_test", "nat"),
+                             ("sample_stats", "lp", "nat")):
+        dt[group][var].attrs["units"] = unit
+    return dt
 
 
 def rmse(logpost, pred) -> tuple[float, dict]:

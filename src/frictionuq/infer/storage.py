@@ -54,6 +54,11 @@ COORDS = ("frictionuq unbounded logit-of-box coordinates v2 (independence propos
           "blobs v3: per-record log-likelihood, then per-record residual statistics")
 
 
+#: what reading a damaged HDF5 file raises (h5py's errors derive from these): such a chain is
+#: started afresh; any other exception is a bug and is raised
+UNREADABLE = (OSError, KeyError, ValueError, RuntimeError)
+
+
 def open_backend(backend_path, nw, ndim, resume, log=None, key: str | None = None):
     """(backend, steps already stored). A stored chain is resumed only when it was written in the
     same coordinates (attribute `coordinates` of the backend's group), with the same shape, by
@@ -80,7 +85,7 @@ def open_backend(backend_path, nw, ndim, resume, log=None, key: str | None = Non
                 be.get_chain(), be.get_log_prob(), be.get_blobs(), be.get_last_sample()
                 load_proposal(be)
                 return be, int(be.iteration)
-        except Exception as e:       # unreadable / corrupted file: start again
+        except UNREADABLE as e:      # unreadable / corrupted file: start again
             if log is not None:
                 log(f"stored chain {backend_path.name} unreadable ({type(e).__name__}: "
                     f"{' '.join(str(e).split())[:120]}): starting afresh")
