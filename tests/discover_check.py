@@ -20,9 +20,12 @@ def check_discover(tmp_path, device, effect, seed, refit, also=None, max_effects
     effect at random realistic parameters, or none: the screening names it, or says none; with
     the MCMC refit, the effect's parameters are inside their 95 % intervals and rmse_after is
     within 1.2 times the generator's noise sd (the refit case is the MFD's). Fixed seeds, so each case either always passes or
-    always fails; the false-alarm guard is the decision rule (screen.py; no false alarm on the
-    clean campaigns of benchmarks/bench_discover.py); the larger set (every effect, both
-    devices, refits) is that benchmark. With max_effects > 1, discover names effects one per
+    always fails; the false-alarm guard is the decision rule (screen.py), measured on the clean
+    campaigns of benchmarks/bench_discover.py: 0 false alarms in 100 short ones (one-sided 95 %
+    bound 3 %; docs/log-discrepancy.md). The CI's hidden-effect cases are not a random sample of
+    that benchmark: stage2_nonlinear, named on 2 of 18 short campaigns, is not among them (the
+    README's hit-rate table says so); the larger set (every effect, both devices, refits) is
+    that benchmark. With max_effects > 1, discover names effects one per
     round (forward selection): a second hidden effect (`also`) is named too, and the gap checks
     are those of the model with both; with one hidden effect the next round says none."""
     from frictionuq.discrepancy.discover import discover

@@ -42,7 +42,21 @@ def test_quick_workflow_runs_and_writes_every_output(quick):
     val = json.loads((out / "predict" / "validation" / "validation.json").read_text())
     t = val["tests"][0]
     assert t["test"] == "eq-imperial-valley-36lb" and t["held_out"] is True
-    assert 0.0 <= t["coverage95"] <= 1.0 and t["nrmse"] > 0
+    # the scores are the bands' against the measured record (recomputed here from the files)
+    import numpy as np
+    import pandas as pd
+    from frictionuq.campaign import load_campaign
+    from frictionuq.validate import calibration_notes
+    b = pd.read_csv(out / "predict" / "validation" / "eq-imperial-valley-36lb.bands.csv")
+    y = load_campaign(out / "ingest").test("eq-imperial-valley-36lb").record.force
+    inside = (y >= b["force_q2.5"]) & (y <= b["force_q97.5"])
+    assert t["coverage95"] == pytest.approx(float(np.mean(inside)), abs=1e-12)
+    assert t["nrmse"] == pytest.approx(float(np.sqrt(np.mean((y - b["force_median"]) ** 2))
+                                             / np.ptp(y)), rel=1e-9)
+    # a miscalibrated band is said in the report (the replay's 50 % band covers about 15 %)
+    report = (d / "report" / "index.html").read_text()
+    for line in calibration_notes(t):
+        assert line.split(":")[0][1:] in report     # the report capitalises its first letter
     cmp = json.loads((out / "compare" / "compare.json").read_text())
     assert set(cmp["levels"][0]["models"]) == {"three_stage", "lugre"}
     assert cmp["levels"][0]["pairs"], "two tests: the comparison is cross-validated"
