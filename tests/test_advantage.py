@@ -101,6 +101,10 @@ def test_pressure_campaign_gives_N_per_Pa_and_the_mfd_table():
     assert rows[0]["C_mean"] == pytest.approx(published.mfd_mechanical_advantage("fwd"), rel=1e-12)
     assert rows[1]["C_paper"] == published.mfd_mechanical_advantage("bwd")
     assert math.isnan(rows[0]["mu_mean"]) and rows[0]["applied_display"] == "500 psi"
+    # the table says why mu is missing and how to read C in the campaign's pressure unit
+    from frictionuq.advantage import format_table
+    text = format_table(pd.DataFrame(rows).assign(at_bounds=0.0))
+    assert "N/Pa (times 6894.76 for N/psi)" in text and "mu and the design values are not" in text
 
 
 def test_law_rows_at_interpolated_forces(fit_dir, monkeypatch):
@@ -169,7 +173,7 @@ def test_cli_refuses_a_folder_that_is_not_a_fit(tmp_path, capsys):
     assert not out.exists()
 
 
-def test_with_the_real_law(fit_dir, tmp_path):
+def test_with_the_real_law(fit_dir, tmp_path, capsys):
     """With the folder's own force-dependence law (frictionuq.infer.law, linear family): rows at
     the geometric midpoint of the two levels, and predictions there come from the law."""
     import shutil
@@ -189,6 +193,21 @@ def test_with_the_real_law(fit_dir, tmp_path):
     meta = write_prediction(fd, tmp_path / "p", harmonic=(0.0254, 0.2), applied=200, n_draws=50)
     assert meta["draws_source"] == "force-dependence law" and meta["applied"]["unit"] == "N"
     assert meta["fits"] == ["applied-267N"]           # noise from the nearest level (log force)
+    assert meta["applied_range"]["beyond"] is False   # between the levels
+    # far above the fitted levels (a pressure in Pa typed into a psi campaign lands there): the
+    # law extrapolates, and the prediction says so (JSON, a warning, the CLI's note)
+    from frictionuq.errors import ResultWarning
+    with pytest.warns(ResultWarning, match="the force-dependence law extrapolates"):
+        far = write_prediction(fd, tmp_path / "far", harmonic=(0.0254, 0.2), applied=2000,
+                               n_draws=20)
+    assert far["applied_range"]["beyond"] is True
+    assert far["applied_range"]["fitted_levels_si"] == [133.0, 267.0]
+    from frictionuq.cli import main
+    capsys.readouterr()
+    assert main(["predict", str(fd), "--harmonic", "0.0254,0.2", "--applied", "2000", "--out",
+                 str(tmp_path / "far-cli"), "--draws", "20"]) == 0
+    err = capsys.readouterr().err
+    assert "note: applied 2000 N (2000 SI) lies beyond 1.5 times the fitted levels" in err, err
 
 
 def test_fits_behind_names_only_the_fits_the_table_uses():

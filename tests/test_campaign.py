@@ -194,6 +194,8 @@ def _bad_cases():
         ("bad kind", toml_edit('kind = "harmonic"', 'kind = "sine"'), ["tests[0]", "kind", "'sine'"]),
         ("missing file", toml_edit("tests/h2.csv", "tests/nope.csv"), ["tests[1]", "nope.csv", "not found"]),
         ("missing column", file_case(_csv(header="time,disp,force")), ["h2.csv", "missing column 'displacement'"]),
+        ("semicolons", file_case(_csv().replace(",", ";")), ["h2.csv", "missing column 'time'",
+                                                            "looks ';'-separated"]),
         ("non-numeric cell", file_case(csv_with(7, 2, "abc")), ["h2.csv", "line 8", "force", "'abc' is not a number"]),
         ("empty cell", file_case(csv_with(5, 1, "")), ["h2.csv", "line 6", "displacement", "empty cell"]),
         ("NaN", file_case(csv_with(9, 2, "nan")), ["h2.csv", "line 10", "NaN"]),

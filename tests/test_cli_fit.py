@@ -181,3 +181,20 @@ def test_ctrl_c_while_sampling_is_one_line_and_the_rerun_resumes(tmp_path):
     assert len(rest.strip().splitlines()) <= 3, rest
     again = subprocess.run(cmd[:-1] + ["10"], capture_output=True, text=True, timeout=300)
     assert "resuming from stored step" in again.stderr, again.stderr
+
+
+def test_fit_says_which_posteriors_press_against_a_prior_bound(tmp_path, monkeypatch, capsys):
+    """A posterior the prior cuts off (a new user's sigma0 on its data-derived lower bound, with
+    an interval that looked confident) is named on the command line, not only in the report."""
+    import importlib
+    summary = {"campaign": "c", "fits": [
+        {"id": "applied-500psi", "converged": False, "rmse": 17.0,
+         "identifiability": {"at_prior_bound": {"sigma0": "lower"}}},
+        {"id": "applied-1000psi", "converged": True, "rmse": 18.0,
+         "identifiability": {"at_prior_bound": {}}}]}
+    monkeypatch.setattr(importlib.import_module("frictionuq.infer.fit"), "fit_campaign",
+                        lambda *a, **k: summary)
+    assert main(["fit", TWIN, "--out", str(tmp_path / "out")]) == 1
+    out = capsys.readouterr().out
+    assert "note: applied-500psi: posterior pressed against a prior bound: sigma0 (lower)" in out
+    assert "note: applied-1000psi" not in out

@@ -379,3 +379,17 @@ def test_the_pure_lugre_model_needs_no_backlash_parameters():
                                   simulate(t, x, {**p, "d2": 0.01, "k3": 1.0}, model="lugre"))
     with pytest.raises(ValueError, match="missing parameter 'k2'"):
         simulate(t, x, lugre_only)
+
+
+def test_a_summarys_parameter_means_simulate_directly():
+    """The means of a fit's summary.json (per-test noise names included, e.g.
+    sigma_noise[TEST]) go into simulate as they are: the likelihood-only names are ignored."""
+    from frictionuq.published import brfd_params
+    p = brfd_params(133.0)
+    t = np.arange(0, 2, 0.01)
+    x = 0.02 * np.sin(2 * np.pi * t)
+    means = {**p, "force_offset": 12.0, "sigma_noise[h-1Hz]": 30.0, "noise_phi[h-1Hz]": 0.5}
+    np.testing.assert_array_equal(simulate(t, x, means), simulate(t, x, p))
+    with pytest.raises(ValueError, match="unknown parameter 'fc_fwd\\[h-1Hz\\]'"):
+        P.pack({**p, "fc_fwd[h-1Hz]": 1.0})
+

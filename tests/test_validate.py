@@ -1,5 +1,7 @@
 """frictionuq.validate's scores and the sentences that flag a miscalibrated band (deterministic:
 the bands are built from known errors)."""
+import re
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -38,7 +40,8 @@ def test_a_biased_median_inside_a_wide_band_is_flagged_by_the_50_percent_band():
     assert s["bias_N"] == pytest.approx(2600.0, rel=0.02)
     notes = calibration_notes(s)
     assert len(notes) == 1
-    assert "50 % band" in notes[0] and "+2.6 kN" in notes[0] and "overstates" in notes[0]
+    assert "50 % band" in notes[0] and "overstates" in notes[0]
+    assert re.search(r"off by \+2[56]\d\d N on average", notes[0]), notes[0]
 
 
 def test_overconfident_and_conservative_bands_are_named():

@@ -32,6 +32,7 @@ import numpy as np
 import pandas as pd
 
 from . import atomic, published
+from . import units as U
 from .environment import environment
 from .draws import LAW_SOURCE
 from .errors import InputError
@@ -197,6 +198,15 @@ def format_table(df: pd.DataFrame) -> str:
                      "scattered levels; on a posterior row: a fit the data do not pin down)")
     lines.append("C = fc / applied (BRFD Eq. 10, fc of the direction); mu = ln(1 + C r_b / r) / phi; "
                  "intervals: 2.5-97.5 % of the posterior (law rows: of the law's draws)")
+    pressure = df[df["applied_unit"] == "Pa"]
+    if len(pressure):
+        unit = str(pressure["applied_display"].iloc[0]).split()[-1]
+        per = U.factor("applied", unit) if unit in U.UNITS["applied"] else 1.0
+        lines.append(f"a pressure-applied device: C is friction force per pressure, N/Pa (times "
+                     f"{per:.6g} for N/{unit}); mu and the design values are not computed: Eq. 10 "
+                     "relates a band brake's tension to its friction, and a drum brake's mu would "
+                     "need its piston area and lining geometry, which the campaign format does "
+                     "not carry")
     return "\n".join(lines)
 
 

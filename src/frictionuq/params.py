@@ -205,12 +205,16 @@ def pack(params: Mapping[str, float], effects: Mapping[str, Mapping[str, float]]
     """Named parameters (+ effects) -> the kernel's float64 vector (len(VECTOR_NAMES)).
 
     `params` must hold every base name; likelihood-only names (`sigma_noise`, `force_offset`,
-    the noise effects' parameters) are accepted and ignored; anything else is refused. A noise
-    effect in `effects` is validated and does not change the vector.
+    the noise effects' parameters, and a summary's per-test ones such as `sigma_noise[TEST]`)
+    are accepted and ignored; anything else is refused. A noise effect in `effects` is
+    validated and does not change the vector.
     """
     params = _mapping(params, "params", "{name: value}, e.g. {'fc_fwd': 1200.0, ...}")
     vec = np.empty(len(VECTOR_NAMES))
     for name in params:
+        base = name.split("[", 1)[0] if isinstance(name, str) and name.endswith("]") else name
+        if base != name and base in PARAMS and PARAMS[base].kind == "likelihood":
+            continue                        # sigma_noise[TEST], noise_phi[TEST] of a summary
         if name not in PARAMS or PARAMS[name].kind == "effect":
             hint = " (effect parameters go under `effects`)" if name in EFFECT_PARAM_NAMES else ""
             raise ValueError(f"unknown parameter {name!r}{hint}; the simulator's parameters: "

@@ -236,11 +236,11 @@ def predict(fit_dir, applied_si: float, t, x, *, eps: float | str = 0.0, n_draws
     Fn = add_noise(Fm, draws, float(np.median(np.diff(t))), rng, include_offset,
                    gain=noise_gain(x, draws, eps))
     bounds = cycle_bounds(x, eps, samples_per_cycle)
-    _warn_about(fit_dir, draws, summary, t, x)
+    _warn_about(fit_dir, draws, summary, t, x, applied_si)
     return Prediction(band_table(t, x, Fn, Fm), cycle_table(t, x, Fm, bounds), draws, eps, Fm)
 
 
-def _warn_about(fit_dir, draws, summary, t, x) -> None:
+def _warn_about(fit_dir, draws, summary, t, x, applied_si) -> None:
     """ResultWarning for what the bands rest on (the CLI says the same in its notes)."""
     import warnings
     from .errors import ResultWarning
@@ -253,6 +253,10 @@ def _warn_about(fit_dir, draws, summary, t, x) -> None:
     if rng["beyond"]:
         warnings.warn(f"the input goes beyond {BEYOND_FACTOR} times the fitted records' "
                       f"{' and '.join(rng['beyond'])}: the bands extrapolate the model",
+                      ResultWarning, stacklevel=3)
+    if applied_range(summary, applied_si)["beyond"]:
+        warnings.warn(f"the applied force {applied_si:g} (SI) lies beyond {BEYOND_FACTOR} times "
+                      "the fitted levels' range: the force-dependence law extrapolates",
                       ResultWarning, stacklevel=3)
 
 
@@ -286,6 +290,20 @@ def fitted_range(fit_dir, fit_ids, t, x) -> dict:
               if ref > 0 and v > BEYOND_FACTOR * ref]
     return {"stroke_m": stroke, "fitted_stroke_m": amp, "peak_speed_m_s": speed,
             "fitted_peak_speed_m_s": vmax, "beyond": beyond, "factor": BEYOND_FACTOR}
+
+
+def applied_range(summary: dict, applied_si: float) -> dict:
+    """The applied force beside the fitted levels' (SI): `beyond` when it lies above
+    BEYOND_FACTOR times the highest or below the lowest positive one divided by it, where the
+    force-dependence law extrapolates (a pressure typed in the wrong unit lands there too)."""
+    from .fitdir import fitted_levels
+    levels = fitted_levels(summary)
+    lo = min((a for a in levels if a > 0), default=None)
+    hi = max(levels, default=None)
+    beyond = bool(levels) and (applied_si > BEYOND_FACTOR * hi
+                               or (lo is not None and 0 < applied_si < lo / BEYOND_FACTOR))
+    return {"applied_si": float(applied_si), "fitted_levels_si": levels, "beyond": beyond,
+            "factor": BEYOND_FACTOR}
 
 
 def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied: float,
@@ -347,6 +365,7 @@ def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied
     meta = {"package_version": __version__, "environment": environment(),
             "fit_dir": str(fit_dir), "campaign": summary.get("campaign"),
             "fitted_range": fitted_range(fit_dir, behind, t, x),
+            "applied_range": applied_range(summary, a_si),
             "applied": {"si": a_si, "si_unit": U.si_unit_of_applied(unit), "value": value,
                         "unit": unit, "unit_source": unit_src},
             "draws_source": pred.draws.source, "fits": pred.draws.fits,

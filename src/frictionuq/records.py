@@ -77,8 +77,12 @@ def read_csv(path, columns: dict[str, str], optional: dict[str, str] | None = No
     out = {}
     for logical, header in columns.items():
         if header not in df.columns:
+            sep = next((d for d in (";", "\t", "|") if len(df.columns) == 1
+                        and d in str(df.columns[0])), None)
+            hint = (f" (the file looks {'tab' if sep == chr(9) else repr(sep)}-separated: "
+                    "frictionuq reads comma-separated CSV)") if sep else ""
             raise InputError(f"{path}: missing column {header!r} ({logical}); "
-                             f"the header has: {', '.join(map(repr, df.columns))}")
+                             f"the header has: {', '.join(map(repr, df.columns))}{hint}")
     if len(df) < MIN_SAMPLES:
         raise InputError(f"{path}: {len(df)} samples; a record needs at least {MIN_SAMPLES}")
     for logical, header in columns.items():

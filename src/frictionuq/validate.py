@@ -53,7 +53,7 @@ def calibration_notes(s: dict) -> list[str]:
     out = []
     c95, c50 = s.get("coverage95"), s.get("coverage50")
     bias = s.get("bias_N")
-    why = (f"; the median is off by {bias / 1e3:+.3g} kN on average (measured minus median)"
+    why = (f"; the median is off by {bias:+.4g} N on average (measured minus median)"
            if bias is not None and np.isfinite(bias) else "")
     if c95 is not None and c95 < COVERAGE95_LOW:
         out.append(f"the 95 % band covers {c95:.1%} of the samples, under {COVERAGE95_LOW:.0%}: "

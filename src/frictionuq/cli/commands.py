@@ -39,6 +39,12 @@ def _cmd_fit(a):
     for f in s["fits"]:
         print(f"  {f['id']}: {'converged' if f['converged'] else 'NOT converged'}, "
               f"RMSE {f['rmse']:.4g} N")
+        pinned = (f.get("identifiability") or {}).get("at_prior_bound") or {}
+        if pinned:
+            print(f"  note: {f['id']}: posterior pressed against a prior bound: "
+                  + ", ".join(f"{n} ({side})" for n, side in pinned.items())
+                  + ": there the prior, not the data, sets the interval (widen it with --prior "
+                    "if the bound is not physical)")
     if bad:
         print(f"not converged (R-hat > 1.01 or ESS < 400 for some parameter): {', '.join(bad)}")
         return 1
@@ -51,6 +57,9 @@ def _cmd_law(a):
           f"(other parameters shared), {len(doc['levels'])} applied forces")
     for fam, c in doc["comparison"].items():
         print(f"  {fam:<11} held-out ELPD {c['elpd']:9.2f} nats (SE {c['se']:.2f})")
+    if len(doc["levels"]) < 3:
+        print("  note: with fewer than 3 levels the between-level scatter is set by its prior, so "
+              "the law's intervals between and beyond the levels are wide")
     if not doc["comparison"]:
         print(f"  families not compared: leave-one-level-out needs 3 or more levels, here "
               f"{len(doc['levels'])}")
@@ -107,7 +116,14 @@ def _cmd_predict(a):
         print(f"note: the input goes beyond the fitted records ({', '.join(r['beyond'])}): stroke "
               f"{r['stroke_m']:.4g} m against {r['fitted_stroke_m']:.4g} m, peak speed "
               f"{r['peak_speed_m_s']:.4g} m/s against {r['fitted_peak_speed_m_s']:.4g} m/s; the "
-              "bands extrapolate the model there", file=sys.stderr)
+              "bands extrapolate the model there (predict's input CSV is in SI: metres)",
+              file=sys.stderr)
+    ar = m["applied_range"]
+    if ar["beyond"]:
+        lv = ", ".join(f"{v:g}" for v in ar["fitted_levels_si"])
+        print(f"note: applied {ap['value']:g} {ap['unit']} ({ar['applied_si']:g} SI) lies beyond "
+              f"{ar['factor']:g} times the fitted levels ({lv} SI): the force-dependence law "
+              f"extrapolates there (is {ap['unit']} the unit you meant?)", file=sys.stderr)
 
 
 def _cmd_advantage(a):
