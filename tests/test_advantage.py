@@ -207,7 +207,8 @@ def test_with_the_real_law(fit_dir, tmp_path, capsys):
     assert main(["predict", str(fd), "--harmonic", "0.0254,0.2", "--applied", "2000", "--out",
                  str(tmp_path / "far-cli"), "--draws", "20"]) == 0
     err = capsys.readouterr().err
-    assert "note: applied 2000 N (2000 SI) lies beyond 1.5 times the fitted levels" in err, err
+    assert ("note: applied 2000 N lies above the fitted levels (133, 267 N) by more than a "
+            "factor 1.5") in err, err
 
 
 def test_fits_behind_names_only_the_fits_the_table_uses():

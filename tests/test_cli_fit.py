@@ -177,7 +177,8 @@ def test_ctrl_c_while_sampling_is_one_line_and_the_rerun_resumes(tmp_path):
     code = proc.wait(timeout=120)
     assert code == 130, rest
     assert "Traceback" not in rest and "emcee" not in rest, rest
-    assert rest.strip().splitlines()[-1] == "frictionuq: interrupted; finished outputs are kept", rest
+    assert rest.strip().splitlines()[-1] == ("frictionuq: interrupted; finished outputs are kept, "
+                                             "and the same command resumes a fit from its stored steps"), rest
     assert len(rest.strip().splitlines()) <= 3, rest
     again = subprocess.run(cmd[:-1] + ["10"], capture_output=True, text=True, timeout=300)
     assert "resuming from stored step" in again.stderr, again.stderr

@@ -283,6 +283,7 @@ def test_a_stored_chain_resumes_only_under_the_same_configuration(tmp_path):
 
     _, post = fit("a", cfg)
     first = sampler_record("a")
+
     # every posterior variable carries its unit (CF "units"), for a reader of one variable
     assert post["fc_fwd"].attrs["units"] == "N" and post["sigma_noise"].attrs["units"] == "N"
     assert post["noise_phi"].attrs["units"] == "1" and "friction" in post["fc_fwd"].attrs["long_name"]
@@ -330,3 +331,18 @@ def test_an_iid_fit_records_noise_phi_as_fixed_and_can_converge(tmp_path):
     def no_constants(c):
         raise AssertionError(f"summary.json holds {c}")
     json.loads((tmp_path / "out" / "summary.json").read_text(), parse_constant=no_constants)
+
+
+def test_the_summary_records_the_campaign_by_its_absolute_path(tmp_path, monkeypatch):
+    """A relative campaign path (as typed) broke advantage's geometry lookup when run from
+    another working directory: the summary records the absolute one."""
+    from pathlib import Path
+    from types import SimpleNamespace as NS
+    from frictionuq.infer.fit import write_summary
+    (tmp_path / "camp").mkdir()
+    (tmp_path / "out").mkdir()
+    monkeypatch.chdir(tmp_path)
+    s = write_summary(Path("out"), NS(name="c", units={"applied": "N"}), "applied", FitConfig(), [],
+                      "camp")
+    assert s["campaign_path"] == str(tmp_path.resolve() / "camp")
+

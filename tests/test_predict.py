@@ -342,3 +342,12 @@ def test_results_from_unconverged_fits_say_so(fit_dir, tmp_path, capsys):
     assert "note: the bands are drawn from fit(s) not converged" in capsys.readouterr().err
     doc = json.loads((tmp_path / "p" / "prediction.json").read_text())
     assert set(doc["not_converged_fits"]) <= set(ids) and doc["not_converged_fits"]
+
+
+def test_an_unfitted_level_without_a_law_says_what_can_be_done(fit_dir):
+    """One fitted level: no law can be fitted, and the message says so (it suggested running
+    `frictionuq law`, which then refused)."""
+    t, x = harmonic_input(AMP, FREQ)
+    with pytest.raises(InputError, match="none can be fitted: it needs fits at 2 or more applied "
+                                         "forces > 0, this folder has 1"):
+        predict(fit_dir, 500.0, t, x, n_draws=20)

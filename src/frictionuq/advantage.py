@@ -230,7 +230,7 @@ def write_advantage(fit_dir, out_dir=None) -> pd.DataFrame:
     summary = load_summary(fit_dir)
     camp = campaign_of(summary)
     doc = {"package_version": __version__, "environment": environment(),
-           "fit_dir": str(fit_dir), "campaign": summary.get("campaign"),
+           "fit_dir": str(Path(fit_dir).resolve()), "campaign": summary.get("campaign"),
            # the law rows' draws come from this seed; the fits' own seed and config as fitted
            "seed": LAW_SEED, "fit_config": summary.get("config"),
            "not_converged_fits": not_converged(summary, fits_behind(df, summary)),

@@ -92,7 +92,7 @@ def _shown(values_si, summary: dict) -> str:
 
     def one(v: float) -> str:
         return f"{v:g} {si}" if unit == si else \
-            f"{from_si(v, 'applied', unit):g} {unit} ({v:.4g} {si})"
+            f"{from_si(v, 'applied', unit):g} {unit} ({v:.6g} {si})"
     return ", ".join(one(float(v)) for v in values_si) or "none"
 
 

@@ -140,8 +140,8 @@ def validate(fit_dir, campaign_path, test_ids, out_dir, *, n_draws: int = 400, s
             log(f"{tid}: coverage95 {s['coverage95']:.3f}, coverage50 {s['coverage50']:.3f}, "
                 f"RMSE {s['rmse_N']:.4g} N, NRMSE {s['nrmse']:.4f}")
         doc = {"package_version": __version__, "environment": environment(),
-               "fit_dir": str(fit_dir), "campaign": camp.name,
-               "campaign_path": str(campaign_path), "seed": seed, "n_draws": n_draws,
+               "fit_dir": str(Path(fit_dir).resolve()), "campaign": camp.name,
+               "campaign_path": str(Path(campaign_path).resolve()), "seed": seed, "n_draws": n_draws,
                "not_converged_fits": not_converged(summary, behind),
                "units": "force N, applied_si N or Pa, eps m; coverage fractions of samples; nrmse = rmse / "
                         "peak-to-peak measured force",

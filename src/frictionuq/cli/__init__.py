@@ -43,7 +43,8 @@ def main(argv=None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except KeyboardInterrupt:
-        print("frictionuq: interrupted; finished outputs are kept", file=sys.stderr)
+        print("frictionuq: interrupted; finished outputs are kept, and the same command "
+              "resumes a fit from its stored steps", file=sys.stderr)
         return 130
     except (ValueError, FileNotFoundError, IsADirectoryError, NotADirectoryError,
             PermissionError) as e:

@@ -263,7 +263,7 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
                   for lv in last["levels"]]
     rmse_before = float(np.mean([lv["models"]["baseline"]["rmse_map"] for lv in levels]))
     doc = {"package_version": __version__, "environment": environment(),
-           "campaign": camp.name, "campaign_path": str(campaign_path),
+           "campaign": camp.name, "campaign_path": str(Path(campaign_path).resolve()),
            "seed": seed, "config": cfg.to_json(), "named_effect": named,
            "named_effects": named_all, "reason": rounds[0]["reason"],
            "decision_rule": screen.RULE, "extra_effects": list(extra_effects),

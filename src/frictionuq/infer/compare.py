@@ -305,7 +305,7 @@ def write_compare(out_dir, campaign: str, campaign_path, configs: dict, levels: 
     """Write out_dir/compare.json and compare.csv (atomically) for compared levels."""
     from .. import __version__
     result = {"package_version": __version__, "environment": environment(), "campaign": campaign,
-              "campaign_path": str(campaign_path), "seed": seed, "offset": offset,
+              "campaign_path": str(Path(campaign_path).resolve()), "seed": seed, "offset": offset,
               "config": {"models": {n: c.to_json() for n, c in configs.items()},
                          "kinds": list(kinds) if kinds else None,
                          "tests": list(tests) if tests else None},

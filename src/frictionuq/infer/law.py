@@ -258,7 +258,7 @@ def fit_law(fit_dir, family: str = "auto", seed: int = 1, compare: bool = True, 
                    "beta_draws": ch[idx, :-1].tolist(), "tau_draws": np.exp(ch[idx, -1]).tolist(),
                    "tau_median": float(np.median(np.exp(ch[:, -1])))}
     doc = {"format": "frictionuq-law/1", "package_version": __version__, "environment": environment(),
-           "campaign": summary.get("campaign"), "fit_dir": str(fit_dir), "seed": seed,
+           "campaign": summary.get("campaign"), "fit_dir": str(Path(fit_dir).resolve()), "seed": seed,
            "model": model, "effects": list(effects), "family": chosen,
            "family_requested": family, "force_dependent": dep,
            "levels": [{"id": L["id"], "applied": L["applied"], "converged": L["converged"]}
@@ -277,8 +277,17 @@ def fit_law(fit_dir, family: str = "auto", seed: int = 1, compare: bool = True, 
 def load_law(fit_dir) -> dict:
     p = Path(fit_dir) / LAW_FILE
     if not p.is_file():
-        raise InputError(f"{fit_dir}: no force-dependence law ({LAW_FILE}); run `frictionuq law "
-                         f"{fit_dir}` after a `fit --by applied` with 2 or more applied forces")
+        from ..fitdir import fitted_levels, load_summary
+        try:
+            positive = [a for a in fitted_levels(load_summary(fit_dir)) if a > 0]
+        except InputError:
+            positive = []
+        if len(positive) >= 2:
+            raise InputError(f"{fit_dir}: no force-dependence law ({LAW_FILE}); run `frictionuq "
+                             f"law {fit_dir}`")
+        raise InputError(f"{fit_dir}: no force-dependence law ({LAW_FILE}), and none can be "
+                         f"fitted: it needs fits at 2 or more applied forces > 0, this folder "
+                         f"has {len(positive)}; predict at a fitted level, or fit more levels")
     from ..fitdir import read_json
     return read_json(p, "force-dependence law")
 

@@ -45,7 +45,8 @@ def build(ctx, generated: str) -> list[dict]:
             ("workflow file sha256", wf.get("sha256", "not recorded")),
             ("seeds", _seeds(ctx)),
             ("run started", prov.get("started", "not recorded")),
-            ("run finished", prov.get("finished", "not recorded")),
+            # the record the report reads is written just before it (the run's end comes after)
+            ("run record written", prov.get("finished", "not recorded")),
             ("run folder", str(ctx.run_dir)),
             ("report generated", generated)]
     env = section_of(prov, "environment")
@@ -69,8 +70,10 @@ def build(ctx, generated: str) -> list[dict]:
         rows, classes = [], []
         for t in tasks:
             status = str(t.get("status", DASH))
-            if t.get("stage") == "report" and status.lower() == "not run":
-                status = "running (writes this page)"     # the record is read while it runs
+            if t.get("stage") == "report" and status.lower() != "failed":
+                # the record is read while this task runs: whatever it says of the task is of
+                # an earlier run (cached, or not run yet)
+                status = "running (writes this page)"
             ok = (status.lower() in OK_STATUS or status.startswith("running")) and not t.get("error")
             rows.append([t.get("name", DASH), t.get("stage", DASH), badge(status, ok),
                          num(t.get("seconds"), 3), t.get("key") or DASH, t.get("error") or ""])
@@ -79,11 +82,11 @@ def build(ctx, generated: str) -> list[dict]:
         wall = _wall_seconds(prov.get("started"), prov.get("finished") or generated)
         out.append(B.html(table(["task", "stage", "status", "run time (s)", "cache key", "error"],
                                 rows, row_classes=classes,
-                                caption=f"tasks (their run times add up to {num(total, 4)} s"
+                                caption=f"tasks (their run times, each from when it last ran, "
+                                        f"add up to {num(total, 4)} s"
                                         + ("" if wall is None else
-                                           f"; the run had taken {num(wall, 4)} s when this "
-                                           "record was written, tasks running side by side "
-                                           "with -j") + ")")))
+                                           f"; this run had taken {num(wall, 4)} s when the "
+                                           "record was written") + ")")))
     else:
         out.append(B.note("No task record."))
     config = wf.get("config") if isinstance(wf.get("config"), dict) else ctx.workflow
