@@ -297,7 +297,7 @@ def write_summary(out_dir, camp, by: str, config: FitConfig, fits: list[dict], c
     log = log or (lambda m: None)
     out_dir = Path(out_dir)
     summary = {"package_version": __version__, "environment": environment(), "campaign": camp.name,
-               "campaign_path": str(campaign_path), "by": by,
+               "campaign_path": str(Path(campaign_path).resolve()), "by": by,
                "units": {"applied": camp.units.get("applied", "N"),
                          "note": "every value in this file is SI (N, m, s, Pa); `applied` names "
                                  "the campaign's unit for the applied force, used by the CLI"},
