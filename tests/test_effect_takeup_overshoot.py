@@ -86,7 +86,7 @@ def test_neutral_value_is_exactly_the_baseline(l_to, eps):
     drive = prepare(t, x, np.ones_like(t))
     vec = P.pack(BASE, eff)
     F = kernel.simulate_one(drive.x, drive.v, drive.u, drive.dt, drive.applied, drive.a_med, vec,
-                            kernel.THREE_STAGE, eps)
+                            kernel.THREE_STAGE, eps, np.zeros(0, np.uint8))
     assert np.array_equal(F, base)
     # neutral next to another effect that is on: the same as that effect alone
     other = {"reversal_hump": {"a_hump": 0.3, "l_hump": 2e-3}}

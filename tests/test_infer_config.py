@@ -24,6 +24,11 @@ from frictionuq.infer.sampler import SamplerConfig
     (dict(priors=3.0), "priors must be a dict"),
     (dict(simulate_at="fine"), "simulate_at must be one of raw, kept"),
     (dict(n_predictive=-1), "n_predictive must be an integer >= 0"),
+    (dict(priors={"sigma0": "uniform:1e6:1e5"}), "need 1 <= lower < upper"),
+    (dict(priors={"sigma0": {"dist": "weird", "lower": 0, "upper": 1}}), "unknown dist 'weird'"),
+    (dict(priors={"sigma0": float("nan")}), "nan is not finite"),
+    (dict(priors={"sigma00": 1.0}), "unknown parameter 'sigma00'"),
+    (dict(tests=[]), "tests is empty"),
 ])
 def test_a_bad_field_is_refused_at_construction(kw, message):
     with pytest.raises(InputError, match=message) as e:
@@ -59,3 +64,27 @@ def test_library_calls_refuse_before_any_work(tmp_path):
     with pytest.raises(InputError, match="no test given"):
         validate(tmp_path / "fit", tmp_path / "camp", [], tmp_path / "v")
     assert not (tmp_path / "out").exists() and not (tmp_path / "v").exists()
+
+
+def test_the_reversal_rule_reaches_the_records():
+    """FitConfig(reversal="extreme") reaches each FitRecord (the likelihood passes the record's
+    rule to simulate_batch); with the record's eps and rule a clean sine's force is that of
+    eps = 0, as test_kernel's test of the rule shows for simulate."""
+    import numpy as np
+    from frictionuq import published
+    from frictionuq.infer.likelihood import prepare_record
+    from frictionuq.model import simulate
+    with pytest.raises(InputError, match="reversal must be one of detection, extreme"):
+        FitConfig(reversal="late")
+    opts = FitConfig(reversal="extreme").record_options()
+    assert opts["reversal"] == "extreme"
+    p = published.brfd_params(133.0)
+    t = np.arange(0, 4, 1 / 256)
+    x = 0.025 * np.sin(2 * np.pi * 0.5 * t)
+    y = simulate(t, x, p)
+    opts = {**opts, "eps": 2e-5, "samples_per_cycle": 512}
+    rec = prepare_record("h", t, x, y, **opts)
+    assert rec.reversal == "extreme" and rec.eps == 2e-5 and rec.q == 1
+    from frictionuq.model import simulate_batch, pack_batch
+    F = simulate_batch(rec.drive, None, pack_batch([p]), eps=rec.eps, reversal=rec.reversal)[0]
+    np.testing.assert_array_equal(F, y)

@@ -16,7 +16,7 @@ import math
 import numpy as np
 import pytest
 
-from frictionuq import kernel, params as P
+from frictionuq import kernel, params as P, published
 from frictionuq.model import pack_batch, prepare, simulate, simulate_batch
 from oracle import oracle_simulate
 
@@ -263,7 +263,7 @@ def test_neutral_effect_reproduces_baseline_exactly(seed, name, model):
     vec = P.pack(p, eff, model)
     code = kernel.THREE_STAGE if model == "three_stage" else kernel.LUGRE
     F = kernel.simulate_one(drive.x, drive.v, drive.u, drive.dt, drive.applied, drive.a_med, vec,
-                            code, 0.0)
+                            code, 0.0, np.zeros(0, np.uint8))
     assert np.array_equal(F, base)
     # and next to another effect that is on: same as that effect alone
     other = "eccentricity" if name != "eccentricity" else "thermal_fade"
@@ -583,3 +583,30 @@ def test_batch_with_eps_and_prepared_drive():
     for i, p in enumerate(sets):
         assert np.array_equal(out[i], simulate(t, x, p, eps=2e-5))
         assert not np.array_equal(out[i], simulate(t, x, p))     # eps matters on a noisy record
+
+
+def test_reversals_at_the_extreme():
+    """reversal="extreme" starts each backlash at the sample after the motion's extreme: on a
+    clean drive, with a dead band eps > 0 the force is then exactly that of eps = 0 (where the
+    spec's causal rule starts it eps of travel late, after running LuGre pre-sliding backwards
+    over the dead band, which biases a fit's sigma0: docs/model-choices.md); on a noisy drive
+    the reversals are the causal detector's, moved back to their extremes."""
+    from frictionuq.noise import reversal_flags, reversal_indices
+    p = published.brfd_params(133.0)
+    t = np.arange(0, 8, 1 / 1024)
+    x = 0.025 * np.sin(2 * np.pi * 0.5 * t)
+    exact = simulate(t, x, p)
+    late = simulate(t, x, p, eps=1.3e-5)
+    at_ext = simulate(t, x, p, eps=1.3e-5, reversal="extreme")
+    np.testing.assert_array_equal(at_ext, exact)
+    assert np.max(np.abs(late - exact)) > 10.0                     # the causal rule's lag shows
+    xn = x + 1.3e-6 * np.random.default_rng(4).standard_normal(t.size)
+    flags = reversal_flags(xn, 1.3e-5)
+    det = reversal_indices(xn, 1.3e-5)
+    at = np.flatnonzero(flags)
+    assert at.size == det.size and np.all(at <= det)
+    for k, j in zip(at, det):                                      # the sample after the extreme
+        seg = xn[max(k - 200, 0):j]
+        assert xn[k - 1] in (seg.max(), seg.min())
+    with pytest.raises(ValueError, match="reversal must be one of detection, extreme"):
+        simulate(t, x, p, eps=1e-5, reversal="early")

@@ -169,11 +169,14 @@ def _skip_threshold(fc, fs):
 
 
 @njit(cache=True, error_model="numpy")
-def simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, F):
+def simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, rev, F):
     """Run the model over one record; write the force (N) into F (length N).
 
     a_sig: None when every effect is off (fast specialisation); otherwise the measured
-    applied-force signal (length N) or an empty array; a_med its median.
+    applied-force signal (length N) or an empty array; a_med its median. rev: empty for the
+    spec's causal reversal detector with dead band eps; else (length N) the samples at which
+    the motion reverses, rev[k] != 0 (noise.reversal_flags: the reversals of that detector,
+    each moved back to the sample after its extreme), and eps is not used.
     """
     n = x.shape[0]
     if n == 0:
@@ -255,13 +258,19 @@ def simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, F):
     slipping = False
     s_b = 0.0
 
+    use_rev = rev.shape[0] == n
     for k in range(n):
         xk = x[k]
         # -- reversal detection
         if k > 0:
-            if d * (xk - x_ext) > 0.0:
+            turn = False
+            if use_rev:
+                turn = rev[k] != 0
+            elif d * (xk - x_ext) > 0.0:
                 x_ext = xk
             elif d * (x_ext - xk) > eps:
+                turn = True
+            if turn:
                 x_r = x[k - 1]
                 F_r = F[k - 1]
                 d = -d
@@ -385,7 +394,8 @@ def simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, F):
             dead = False
             if model == THREE_STAGE and backlash:
                 xn = x[k + 1]
-                if d * (xn - x_ext) <= 0.0 and d * (x_ext - xn) > eps:     # reversal at k + 1
+                if (rev[k + 1] != 0 if use_rev else
+                        d * (xn - x_ext) <= 0.0 and d * (x_ext - xn) > eps):   # reversal at k + 1
                     dead = -d * (xn - xk) < s_free
                 elif not released:
                     dead = d * (xn - x_r) < s_free
@@ -430,27 +440,27 @@ def simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, F):
 
 
 @njit(cache=True, error_model="numpy")
-def simulate_one(x, v, u, dt, a_sig, a_med, P, model, eps):
+def simulate_one(x, v, u, dt, a_sig, a_med, P, model, eps, rev):
     F = np.empty(x.shape[0])
-    simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, F)
+    simulate_into(x, v, u, dt, a_sig, a_med, P, model, eps, rev, F)
     return F
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def simulate_many(x, v, u, dt, a_sig, a_med, Pmat, model, eps):
+def simulate_many(x, v, u, dt, a_sig, a_med, Pmat, model, eps, rev):
     """Many parameter vectors (rows of Pmat) on one record -> forces (rows)."""
     m = Pmat.shape[0]
     out = np.empty((m, x.shape[0]))
     for i in prange(m):
-        simulate_into(x, v, u, dt, a_sig, a_med, Pmat[i], model, eps, out[i])
+        simulate_into(x, v, u, dt, a_sig, a_med, Pmat[i], model, eps, rev, out[i])
     return out
 
 
 @njit(cache=True, error_model="numpy")
-def simulate_many_serial(x, v, u, dt, a_sig, a_med, Pmat, model, eps):
+def simulate_many_serial(x, v, u, dt, a_sig, a_med, Pmat, model, eps, rev):
     """As simulate_many, on one thread (used when the batch is too small to pay for threads)."""
     m = Pmat.shape[0]
     out = np.empty((m, x.shape[0]))
     for i in range(m):
-        simulate_into(x, v, u, dt, a_sig, a_med, Pmat[i], model, eps, out[i])
+        simulate_into(x, v, u, dt, a_sig, a_med, Pmat[i], model, eps, rev, out[i])
     return out

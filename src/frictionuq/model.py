@@ -93,21 +93,40 @@ def _check_eps(eps) -> float:
     return e
 
 
+#: where a reversal starts the backlash: "detection" (the spec's causal rule: where the motion
+#: has come back eps from its extreme) or "extreme" (at the sample after the extreme; the same
+#: with eps = 0; docs/model-choices.md, "Reversals at the extreme")
+REVERSAL_RULES = ("detection", "extreme")
+_NO_FLAGS = np.zeros(0, dtype=np.uint8)
+
+
+def _reversal_flags(drive, eps: float, reversal: str) -> np.ndarray:
+    if reversal not in REVERSAL_RULES:
+        raise ValueError(f"reversal must be one of {', '.join(REVERSAL_RULES)}, got {reversal!r}")
+    if reversal == "detection" or eps == 0.0:
+        return _NO_FLAGS
+    from .noise import reversal_flags
+    return reversal_flags(drive.x, eps)
+
+
 def simulate(t, x, params: Mapping[str, float], effects: Mapping[str, Mapping[str, float]] | None = None,
-             model: str = "three_stage", eps: float = 0.0, applied=None) -> np.ndarray:
+             model: str = "three_stage", eps: float = 0.0, applied=None,
+             reversal: str = "detection") -> np.ndarray:
     """Force (N) of the damper driven by displacement `x` (m) at times `t` (s).
 
     params: the spec's SI names -> values (likelihood-only names are ignored);
     effects: {effect name: {parameter: value}} from the effect library (missing parameters take
     their defaults); model: "three_stage" (default) or "lugre"; eps: reversal dead-band (m);
-    applied: the measured applied-force signal (SI), needed by `applied_tracking`.
+    applied: the measured applied-force signal (SI), needed by `applied_tracking`; reversal:
+    REVERSAL_RULES.
     """
     code = _model_code(model)
     vec = P.pack(params, effects, model)
     drive = t if isinstance(t, Drive) else prepare(t, x, applied)
     _check_needs(effects, drive)
+    e = _check_eps(eps)
     return kernel.simulate_one(drive.x, drive.v, drive.u, drive.dt, _fx(drive, vec[None, :]),
-                               drive.a_med, vec, code, _check_eps(eps))
+                               drive.a_med, vec, code, e, _reversal_flags(drive, e, reversal))
 
 
 _NEUTRAL = P.neutral_vector()
@@ -140,7 +159,8 @@ _PARALLEL_MIN_WORK = 30_000
 
 
 def simulate_batch(t, x, matrix, model: str = "three_stage", eps: float = 0.0, applied=None,
-                   parallel: bool | None = None, check: bool = True) -> np.ndarray:
+                   parallel: bool | None = None, check: bool = True,
+                   reversal: str = "detection") -> np.ndarray:
     """Forces (m, N) for m parameter vectors on one record, in one call.
 
     matrix: (m, len(params.VECTOR_NAMES)) array laid out as params.VECTOR_NAMES (build it with
@@ -169,4 +189,6 @@ def simulate_batch(t, x, matrix, model: str = "three_stage", eps: float = 0.0, a
     if parallel is None:
         parallel = M.shape[0] > 1 and M.shape[0] * drive.n >= _PARALLEL_MIN_WORK and (os.cpu_count() or 1) > 1
     fn = kernel.simulate_many if parallel else kernel.simulate_many_serial
-    return fn(drive.x, drive.v, drive.u, drive.dt, _fx(drive, M), drive.a_med, M, code, _check_eps(eps))
+    e = _check_eps(eps)
+    return fn(drive.x, drive.v, drive.u, drive.dt, _fx(drive, M), drive.a_med, M, code, e,
+              _reversal_flags(drive, e, reversal))

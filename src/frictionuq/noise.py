@@ -51,15 +51,21 @@ def default_eps(x, multiplier: float = EPS_MULTIPLIER) -> float:
 
 
 @njit(cache=True)
+def first_direction(x):
+    """The direction of the first motion of x (+1 or -1; +1 for a constant record), as the
+    kernel starts its detector."""
+    for j in range(1, x.shape[0]):
+        if x[j] != x[0]:
+            return 1.0 if x[j] > x[0] else -1.0
+    return 1.0
+
+
+@njit(cache=True)
 def reversal_indices(x, eps):
     """Sample indices at which the kernel's detector (spec section 4) sees a reversal of x with
     dead-band eps."""
     out = np.empty(x.shape[0], dtype=np.int64)
-    d = 1.0
-    for j in range(1, x.shape[0]):
-        if x[j] != x[0]:
-            d = 1.0 if x[j] > x[0] else -1.0
-            break
+    d = first_direction(x)
     x_ext = x[0]
     n = 0
     for k in range(1, x.shape[0]):
@@ -137,3 +143,32 @@ def ar1_from_normals(z, phi, sd) -> np.ndarray:
         e[0] /= np.sqrt(1.0 - ph * ph)
         out[idx] = lfilter([c], [1.0, -ph], e)
     return out
+
+
+@njit(cache=True)
+def reversal_flags(x, eps):
+    """uint8 flags (length of x) of the reversals of the kernel's detector with dead band eps,
+    each placed at the sample after its extreme instead of where the detector sees it (eps of
+    travel later): the kernel's `rev` for the "extreme" reversal rule. With eps = 0 the two
+    places coincide. On a recorded (offline) record the extreme is known once the detector has
+    fired, so the backlash can start where the motion turned; the causal rule starts it eps
+    late, after the model has run LuGre pre-sliding backwards over the dead band
+    (docs/model-choices.md, "Reversals at the extreme")."""
+    n = x.shape[0]
+    out = np.zeros(n, dtype=np.uint8)
+    d = first_direction(x)
+    x_ext = x[0]
+    j_ext = 0                      # the last sample at the extreme (the detector keeps the first
+    for k in range(1, n):          # sample strictly beyond; equal values extend the plateau)
+        if d * (x[k] - x_ext) > 0.0:
+            x_ext = x[k]
+            j_ext = k
+        elif x[k] == x_ext:
+            j_ext = k
+        elif d * (x_ext - x[k]) > eps:
+            out[j_ext + 1] = 1
+            d = -d
+            x_ext = x[k]
+            j_ext = k
+    return out
+

@@ -106,12 +106,14 @@ def read_input(path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
 
 # ---------------------------------------------------------------- bands and cycles
 
-def simulate_draws(t, x, draws: Draws, eps: float, applied_signal=None) -> np.ndarray:
-    """Noise-free model force (S, N) of every draw (no offset)."""
+def simulate_draws(t, x, draws: Draws, eps: float, applied_signal=None,
+                   reversal: str = "detection") -> np.ndarray:
+    """Noise-free model force (S, N) of every draw (no offset); reversal: the fit's rule."""
     from .model import simulate_batch
     M = kernel_matrix(draws.params, draws.model, draws.effects)
     try:
-        return simulate_batch(t, x, M, model=draws.model, eps=eps, applied=applied_signal)
+        return simulate_batch(t, x, M, model=draws.model, eps=eps, applied=applied_signal,
+                              reversal=reversal)
     except InputError:
         raise
     except ValueError as e:
@@ -232,7 +234,9 @@ def predict(fit_dir, applied_si: float, t, x, *, eps: float | str = 0.0, n_draws
     rng = np.random.default_rng(seed)
     draws = choose_draws(fit_dir, applied_si, int(n_draws), rng, summary)
     from .infer.likelihood import lowpass_drive
-    Fm = simulate_draws(t, lowpass_drive(t, x, drive_lowpass)[0], draws, eps, applied_signal)
+    reversal = (summary.get("config") or {}).get("reversal", "detection")   # the fit's rule
+    Fm = simulate_draws(t, lowpass_drive(t, x, drive_lowpass)[0], draws, eps, applied_signal,
+                        reversal)
     Fn = add_noise(Fm, draws, float(np.median(np.diff(t))), rng, include_offset,
                    gain=noise_gain(x, draws, eps))
     bounds = cycle_bounds(x, eps, samples_per_cycle)
@@ -254,10 +258,12 @@ def _warn_about(fit_dir, draws, summary, t, x, applied_si) -> None:
         warnings.warn(f"the input goes beyond {BEYOND_FACTOR} times the fitted records' "
                       f"{' and '.join(rng['beyond'])}: the bands extrapolate the model",
                       ResultWarning, stacklevel=3)
-    if applied_range(summary, applied_si)["beyond"]:
-        warnings.warn(f"the applied force {applied_si:g} (SI) lies beyond {BEYOND_FACTOR} times "
-                      "the fitted levels' range: the force-dependence law extrapolates",
-                      ResultWarning, stacklevel=3)
+    ar = applied_range(summary, applied_si)
+    if ar["beyond"]:
+        warnings.warn(f"the applied force {applied_si:g} (SI: N or Pa) lies {ar['side']} the "
+                      f"fitted levels ({', '.join(f'{v:g}' for v in ar['fitted_levels_si'])}) by "
+                      f"more than a factor {BEYOND_FACTOR}: the force-dependence law "
+                      "extrapolates", ResultWarning, stacklevel=3)
 
 
 def fit_drive_lowpass(summary: dict) -> float | None:
@@ -300,10 +306,10 @@ def applied_range(summary: dict, applied_si: float) -> dict:
     levels = fitted_levels(summary)
     lo = min((a for a in levels if a > 0), default=None)
     hi = max(levels, default=None)
-    beyond = bool(levels) and (applied_si > BEYOND_FACTOR * hi
-                               or (lo is not None and 0 < applied_si < lo / BEYOND_FACTOR))
-    return {"applied_si": float(applied_si), "fitted_levels_si": levels, "beyond": beyond,
-            "factor": BEYOND_FACTOR}
+    above = bool(levels) and applied_si > BEYOND_FACTOR * hi
+    below = lo is not None and 0 < applied_si < lo / BEYOND_FACTOR
+    return {"applied_si": float(applied_si), "fitted_levels_si": levels, "beyond": above or below,
+            "side": "above" if above else "below" if below else None, "factor": BEYOND_FACTOR}
 
 
 def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied: float,
@@ -363,7 +369,7 @@ def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied
                    summary=summary, drive_lowpass=lowpass_mult)
     behind = pred.draws.resting_on(summary)
     meta = {"package_version": __version__, "environment": environment(),
-            "fit_dir": str(fit_dir), "campaign": summary.get("campaign"),
+            "fit_dir": str(Path(fit_dir).resolve()), "campaign": summary.get("campaign"),
             "fitted_range": fitted_range(fit_dir, behind, t, x),
             "applied_range": applied_range(summary, a_si),
             "applied": {"si": a_si, "si_unit": U.si_unit_of_applied(unit), "value": value,

@@ -12,7 +12,8 @@ the campaign's own applied unit for `applied` (e.g. lb).
                 likelihood = "ar1" | "iid" | "arma", tests = [...], kinds = [...], samples_per_cycle = 400,
                 simulate_at = "raw" | "kept" (decimated records: model force filtered like the
                 data, or simulated on the decimated displacement), eps = "auto" | metres,
-                drive_lowpass = MULT (off when absent; infer.drivefilter), n_predictive = 200, [fit.priors] (spec names: a number
+                drive_lowpass = MULT (off when absent; infer.drivefilter), reversal = "detection" |
+                "extreme" (model.REVERSAL_RULES), n_predictive = 200, [fit.priors] (spec names: a number
                 fixes the parameter, a table {dist, lower, upper, mu, sd} sets its prior; an
                 effect's parameter only where that effect is in the model, e.g. chatter's
                 opt-in tail b_ch = {dist = "uniform", lower = 0, upper = 1}),
@@ -55,7 +56,7 @@ PUBLISHED = ("none", "brfd", "mfd")
 SECTIONS = {
     "workflow": {"name", "description", "campaign", "seed", "output", "report"},
     "fit": {"by", "model", "effects", "likelihood", "tests", "kinds", "samples_per_cycle",
-            "simulate_at", "eps", "drive_lowpass", "n_predictive", "priors", "sampler"},
+            "simulate_at", "eps", "drive_lowpass", "reversal", "n_predictive", "priors", "sampler"},
     "law": {"enabled", "family"},
     "predict": {"n_draws", "validate", "harmonic", "ground_motion"},
     "compare": {"enabled", "models", "tests", "kinds", "samples_per_cycle", "sampler"},
@@ -104,7 +105,8 @@ class Workflow:
         return FitConfig(model=model, effects=tuple(effects), likelihood=f["likelihood"],
                          priors=dict(f["priors"]) if compare_model in (None, f["model"]) else {},
                          samples_per_cycle=spc, simulate_at=f["simulate_at"], eps=f["eps"],
-                         drive_lowpass=f["drive_lowpass"], n_predictive=f["n_predictive"],
+                         drive_lowpass=f["drive_lowpass"], reversal=f["reversal"],
+                         n_predictive=f["n_predictive"],
                          kinds=tuple(f["kinds"]) if f["kinds"] else None,
                          tests=tuple(f["tests"]) if f["tests"] else None,
                          sampler=SamplerConfig(**{**sampler, "progress": False}),
@@ -241,6 +243,7 @@ def _fit(c: _Checker, t: dict) -> dict:
             "samples_per_cycle": c.num(t, "samples_per_cycle", w, 400.0, positive=True),
             "simulate_at": c.str_(t, "simulate_at", w, "raw", ("raw", "kept")),
             "eps": eps, "drive_lowpass": c.num(t, "drive_lowpass", w, None, positive=True),
+            "reversal": c.str_(t, "reversal", w, "detection", ("detection", "extreme")),
             "n_predictive": c.num(t, "n_predictive", w, 200, integer=True, positive=True),
             "priors": _priors(c, t.get("priors", {}), "[fit.priors]"),
             "sampler": _sampler(c, t.get("sampler", {}), "[fit.sampler]")}

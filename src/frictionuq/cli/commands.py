@@ -30,7 +30,7 @@ def _cmd_fit(a):
                     seed=a.seed, priors=prior_options(a.prior), sampler=samp,
                     tests=tuple(a.test) if a.test else None,
                     kinds=tuple(a.kind) if a.kind else None, simulate_at=a.simulate_at,
-                    drive_lowpass=a.drive_lowpass)
+                    drive_lowpass=a.drive_lowpass, reversal=a.reversal)
     s = fit_campaign(a.campaign, a.out, by=a.by, config=cfg, log=lambda m: print(m, file=sys.stderr),
                      jobs=a.jobs)
     bad = [f["id"] for f in s["fits"] if not f["converged"]]
@@ -120,10 +120,11 @@ def _cmd_predict(a):
               file=sys.stderr)
     ar = m["applied_range"]
     if ar["beyond"]:
-        lv = ", ".join(f"{v:g}" for v in ar["fitted_levels_si"])
-        print(f"note: applied {ap['value']:g} {ap['unit']} ({ar['applied_si']:g} SI) lies beyond "
-              f"{ar['factor']:g} times the fitted levels ({lv} SI): the force-dependence law "
-              f"extrapolates there (is {ap['unit']} the unit you meant?)", file=sys.stderr)
+        from ..units import from_si
+        lv = ", ".join(f"{from_si(v, 'applied', ap['unit']):g}" for v in ar["fitted_levels_si"])
+        print(f"note: applied {ap['value']:g} {ap['unit']} lies {ar['side']} the fitted levels "
+              f"({lv} {ap['unit']}) by more than a factor {ar['factor']:g}: the force-dependence "
+              f"law extrapolates there (is {ap['unit']} the unit you meant?)", file=sys.stderr)
 
 
 def _cmd_advantage(a):
@@ -161,7 +162,8 @@ def _cmd_discover(a):
     from ..infer.priors import prior_options
     samp = _sampler_config(a)
     cfg = FitConfig(likelihood=a.likelihood, sampler=samp, priors=prior_options(a.prior), tests=tuple(a.test) if a.test else None,
-                    kinds=tuple(a.kind) if a.kind else None, drive_lowpass=a.drive_lowpass)
+                    kinds=tuple(a.kind) if a.kind else None, drive_lowpass=a.drive_lowpass,
+                    reversal=a.reversal)
     d = discover(a.campaign, a.out, cfg, seed=a.seed, refit=not a.no_refit,
                  extra_effects=tuple(a.extra_effect or ()), max_effects=a.max_effects,
                  jobs=a.jobs, log=lambda m: print(m, file=sys.stderr))
@@ -179,11 +181,13 @@ def _cmd_discover(a):
               f"named {r['named_effect']} ({r['reason']})")
     print(f"RMSE before {d['rmse_before']:.4g} N, after {d['rmse_after']:.4g} N"
           + (f", noise scale {d['noise_scale']:.4g} N" if d["noise_scale"] else ""))
+    def unit(u):                        # a dimensionless value shows no unit
+        return "" if u == "1" else f" {u}"
     for n, st in d["effect_parameters"].items():
-        print(f"  {n} = {st['mean']:.4g} {st['unit']} [{st['q2.5']:.4g}, {st['q97.5']:.4g}]")
+        print(f"  {n} = {st['mean']:.4g}{unit(st['unit'])} [{st['q2.5']:.4g}, {st['q97.5']:.4g}]")
     for lid, vals in (d.get("effect_parameters_map") or {}).items():
         print(f"  at its MAP ({lid}; no refit, so no intervals): "
-              + ", ".join(f"{n} = {v['value']:.4g} {v['unit']}" for n, v in vals.items()))
+              + ", ".join(f"{n} = {v['value']:.4g}{unit(v['unit'])}" for n, v in vals.items()))
     from ..report import render_discrepancy_page
     page = render_discrepancy_page(a.out)
     print(f"wrote {a.out}/discrepancy.json and {page}")

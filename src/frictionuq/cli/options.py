@@ -35,6 +35,11 @@ def _add_drive_lowpass(s) -> None:
                    help="low-pass each measured displacement (zero phase) at MULT x its 99 %% "
                         "velocity-power frequency before the model runs on it (e.g. 20; default: "
                         "off); predict and validate then filter their measured inputs alike")
+    s.add_argument("--reversal", choices=["detection", "extreme"], default="detection",
+                   help="where a reversal starts the backlash on a measured record: where the "
+                        "dead band eps detects it (the spec's rule, default) or at the motion's "
+                        "extreme (the same with eps = 0); with --drive-lowpass 20 the extreme "
+                        "removes the bias displacement noise puts into sigma0 (README)")
 
 
 class _Parser(argparse.ArgumentParser):

@@ -62,6 +62,9 @@ class FitConfig:
     simulate_at: str = "raw"                       # "raw" or "kept" (infer.likelihood)
     eps: float | str = "auto"
     drive_lowpass: float | None = None             # infer.drivefilter; None: the raw displacement
+    # where a reversal starts the backlash (model.REVERSAL_RULES): "detection", the spec's causal
+    # rule, or "extreme" (docs/model-choices.md, "Reversals at the extreme"); the same at eps 0
+    reversal: str = "detection"
     kinds: tuple[str, ...] | None = None           # only tests of these kinds
     tests: tuple[str, ...] | None = None           # only these test ids
     sampler: SamplerConfig = field(default_factory=SamplerConfig)
@@ -86,12 +89,22 @@ class FitConfig:
                            for k, v in self.priors.items()}
         else:
             raise InputError(f"fit config: priors must be a dict of overrides, got {self.priors!r}")
+        # each override checked on its own now (names, dists, bounds, numbers); against the
+        # record's default priors (relative bounds) again when the fit builds its space
+        from .priors import apply_overrides
+        apply_overrides({}, self.priors, source="fit config")
+        if self.tests is not None and not self.tests:
+            raise InputError("fit config: tests is empty; give test ids, or None for every test")
         _positive("samples_per_cycle", self.samples_per_cycle)
         _positive("min_kept_hz", self.min_kept_hz, allow_none=True)
         try:
             drivefilter.check_multiple(self.drive_lowpass)
         except ValueError as e:
             raise InputError(f"fit: {e}") from None
+        from ..model import REVERSAL_RULES
+        if self.reversal not in REVERSAL_RULES:
+            raise InputError(f"fit config: reversal must be one of {', '.join(REVERSAL_RULES)}, "
+                             f"got {self.reversal!r}")
         if self.simulate_at not in SIMULATE_AT:
             raise InputError(f"fit config: simulate_at must be one of {', '.join(SIMULATE_AT)}, "
                              f"got {self.simulate_at!r}")
@@ -125,4 +138,4 @@ class FitConfig:
             floor = max(floor or 0.0, NOISE_EFFECT_MIN_KEPT_HZ)
         return {"samples_per_cycle": self.samples_per_cycle, "eps": self.eps,
                 "simulate_at": self.simulate_at, "drive_lowpass": self.drive_lowpass,
-                "min_kept_hz": floor}
+                "min_kept_hz": floor, "reversal": self.reversal}

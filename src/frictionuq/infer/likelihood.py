@@ -63,6 +63,7 @@ class FitRecord:
     sim_drive: M.Drive | None = None   # raw-rate drive when the model is simulated at the raw rate
     stride: int = 1              # compare every stride-th kept sample only (coarsened copies)
     drive_cutoff_hz: float | None = None   # displacement low-passed here first (drivefilter)
+    reversal: str = "detection"  # model.REVERSAL_RULES
 
     @property
     def n(self) -> int:
@@ -126,14 +127,17 @@ N_STATS = len(noisemodel.STATS)      # sufficient statistics of a record's resid
 def prepare_record(test_id, t, x, force, applied=None, *, q: int | str = "auto", eps="auto",
                    samples_per_cycle: float = 128, frequency_hz=None, applied_level=float("nan"),
                    kind="other", simulate_at: str = "raw", drive_lowpass=None,
-                   min_kept_hz: float | None = None) -> FitRecord:
+                   min_kept_hz: float | None = None, reversal: str = "detection") -> FitRecord:
     """Decimate one record (SI arrays) and prepare it for the likelihood. simulate_at: "raw"
     (the model runs on the raw-rate record and its force is decimated like the data's) or
     "kept" (the model runs on the decimated displacement). drive_lowpass: None, or low-pass the
     displacement first at this multiple of its 99 % velocity-power frequency (drivefilter).
-    min_kept_hz: None, or the lowest kept rate (Hz) of the automatic q (decimation_factor)."""
+    min_kept_hz: None, or the lowest kept rate (Hz) of the automatic q (decimation_factor).
+    reversal: where the model's reversals start the backlash (model.REVERSAL_RULES)."""
     if simulate_at not in SIMULATE_AT:
         raise ValueError(f"simulate_at must be one of {SIMULATE_AT}, got {simulate_at!r}")
+    if reversal not in M.REVERSAL_RULES:
+        raise ValueError(f"reversal must be one of {M.REVERSAL_RULES}, got {reversal!r}")
     mult = drivefilter.check_multiple(drive_lowpass)
     t = np.asarray(t, float)
     x = np.asarray(x, float)
@@ -152,7 +156,7 @@ def prepare_record(test_id, t, x, force, applied=None, *, q: int | str = "auto",
     sim_drive = M.prepare(t, x, applied) if q > 1 and simulate_at == "raw" else None
     return FitRecord(str(test_id), td, xd, yd, ad, drive, e, q, 1.0 / float(np.median(np.diff(t))),
                      float(applied_level), kind, frequency_hz, sim_drive=sim_drive,
-                     drive_cutoff_hz=cut)
+                     drive_cutoff_hz=cut, reversal=reversal)
 
 
 def lowpass_drive(t, x, multiple: float | None) -> tuple[np.ndarray, float | None]:
@@ -229,7 +233,7 @@ class LogPosterior:
         Mx = self.space.kernel_matrix(theta)
         drive = rec.drive if rec.sim_drive is None else rec.sim_drive
         F = M.simulate_batch(drive, None, Mx, model=self.space.model, eps=rec.eps,
-                             parallel=self.parallel, check=False)
+                             parallel=self.parallel, check=False, reversal=rec.reversal)
         if rec.sim_drive is not None:
             F = decimator(F.shape[1], rec.q)(F)
         return F[:, ::rec.stride][:, : rec.n]
