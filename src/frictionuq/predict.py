@@ -197,6 +197,8 @@ class Prediction:
     draws: Draws
     eps: float
     F_model: np.ndarray
+    fitted_range: dict | None = None     # fitted_range() of the input against the fits behind it
+    applied_range: dict | None = None    # applied_range() of the applied force
 
 
 def predict(fit_dir, applied_si: float, t, x, *, eps: float | str = 0.0, n_draws: int = 400,
@@ -240,12 +242,14 @@ def predict(fit_dir, applied_si: float, t, x, *, eps: float | str = 0.0, n_draws
     Fn = add_noise(Fm, draws, float(np.median(np.diff(t))), rng, include_offset,
                    gain=noise_gain(x, draws, eps))
     bounds = cycle_bounds(x, eps, samples_per_cycle)
-    _warn_about(fit_dir, draws, summary, t, x, applied_si)
-    return Prediction(band_table(t, x, Fn, Fm), cycle_table(t, x, Fm, bounds), draws, eps, Fm)
+    rng_x, rng_a = _warn_about(fit_dir, draws, summary, t, x, applied_si)
+    return Prediction(band_table(t, x, Fn, Fm), cycle_table(t, x, Fm, bounds), draws, eps, Fm,
+                      rng_x, rng_a)
 
 
-def _warn_about(fit_dir, draws, summary, t, x, applied_si) -> None:
-    """ResultWarning for what the bands rest on (the CLI says the same in its notes)."""
+def _warn_about(fit_dir, draws, summary, t, x, applied_si) -> tuple[dict, dict]:
+    """ResultWarning for what the bands rest on (the CLI says the same in its notes); returns
+    the input's fitted_range and the applied force's applied_range."""
     import warnings
     from .errors import ResultWarning
     behind = draws.resting_on(summary)
@@ -264,6 +268,7 @@ def _warn_about(fit_dir, draws, summary, t, x, applied_si) -> None:
                       f"fitted levels ({', '.join(f'{v:g}' for v in ar['fitted_levels_si'])}) by "
                       f"more than a factor {BEYOND_FACTOR}: the force-dependence law "
                       "extrapolates", ResultWarning, stacklevel=3)
+    return rng, ar
 
 
 def fit_drive_lowpass(summary: dict) -> float | None:
@@ -370,8 +375,7 @@ def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied
     behind = pred.draws.resting_on(summary)
     meta = {"package_version": __version__, "environment": environment(),
             "fit_dir": str(Path(fit_dir).resolve()), "campaign": summary.get("campaign"),
-            "fitted_range": fitted_range(fit_dir, behind, t, x),
-            "applied_range": applied_range(summary, a_si),
+            "fitted_range": pred.fitted_range, "applied_range": pred.applied_range,
             "applied": {"si": a_si, "si_unit": U.si_unit_of_applied(unit), "value": value,
                         "unit": unit, "unit_source": unit_src},
             "draws_source": pred.draws.source, "fits": pred.draws.fits,
