@@ -76,7 +76,9 @@ def test_the_reversal_rule_reaches_the_records():
     from frictionuq.model import simulate
     with pytest.raises(InputError, match="reversal must be one of detection, extreme"):
         FitConfig(reversal="late")
-    opts = FitConfig(reversal="extreme").record_options()
+    assert FitConfig().reversal == "extreme"           # the default (docs/model-choices.md)
+    assert FitConfig(reversal="detection").record_options()["reversal"] == "detection"
+    opts = FitConfig(reversal="extreme", drive_lowpass="off").record_options()
     assert opts["reversal"] == "extreme"
     p = published.brfd_params(133.0)
     t = np.arange(0, 4, 1 / 256)

@@ -53,7 +53,13 @@ def test_cutoff_rule_and_refused_values():
     assert drivefilter.cutoff_hz(FS, 0.56, 20) == pytest.approx(11.2)
     assert drivefilter.cutoff_hz(FS, 30.0, 20) is None          # 600 Hz: above 0.9 Nyquist
     assert drivefilter.check_multiple(None) is None
+    assert drivefilter.check_multiple("off") is None
+    assert drivefilter.check_multiple("auto") == "auto"
     assert drivefilter.check_multiple(20) == 20.0
+    # "auto": on at 20 where the record has a dead band (measured), off on a clean drive
+    assert drivefilter.resolve("auto", 1.2e-5) == drivefilter.AUTO_MULTIPLE == 20.0
+    assert drivefilter.resolve("auto", 0.0) is None
+    assert drivefilter.resolve(7, 0.0) == 7.0 and drivefilter.resolve("off", 1e-5) is None
     for bad in (0, -1.0, float("nan"), float("inf"), True, "20"):
         with pytest.raises(ValueError, match="drive_lowpass"):
             drivefilter.check_multiple(bad)
@@ -77,6 +83,42 @@ def test_prepare_record_filters_the_drive_only_when_asked():
     with pytest.raises(ValueError, match="drive_lowpass"):
         prepare_record("a", t, x, y, q=4, drive_lowpass=-2)
 
+
+def test_auto_filters_a_measured_record_and_leaves_a_clean_drive_alone():
+    """FitConfig's default drive_lowpass = "auto": a record with eps > 0 is filtered at 20 x its
+    99 % frequency, one at eps = 0 is not (the same record as off, bit for bit)."""
+    t, clean, x = _noisy_sine()
+    y = np.zeros_like(t)
+    auto = prepare_record("a", t, x, y, q=4, drive_lowpass="auto")
+    assert auto.eps > 0 and auto.drive_cutoff_hz == pytest.approx(drive_cutoff(t, x, 20.0))
+    at0 = prepare_record("a", t, clean, y, q=4, eps=0.0, drive_lowpass="auto")
+    off = prepare_record("a", t, clean, y, q=4, eps=0.0)
+    assert at0.drive_cutoff_hz is None
+    np.testing.assert_array_equal(at0.sim_drive.x, off.sim_drive.x)
+    assert FitConfig().drive_lowpass == "auto" and FitConfig(drive_lowpass="off").drive_lowpass is None
+
+
+def test_on_the_twins_auto_and_extreme_change_the_force_by_much_less_than_the_noise(tmp_path):
+    """The twins' records are clean drives rounded in their CSV (eps "auto" 1e-9 - 3e-8 m), so
+    the defaults filter them and place their reversals at the extremes: on every BRFD twin test
+    the force the model makes that way departs from the generator's (raw drive, eps = 0) by
+    under 1 % of the twin's white force-noise sd (1 % of the friction force); the reversal rule
+    alone changes nothing there."""
+    from frictionuq.campaign import load_campaign as load
+    from frictionuq.noise import default_eps as eps_of
+    from frictionuq.published import published_params
+    from frictionuq.twins import FORCE_WHITE_SD, write_twin
+    write_twin("brfd", tmp_path / "tw")
+    for te in load(tmp_path / "tw").tests:
+        r, p = te.record, published_params("brfd", te.applied)
+        e = eps_of(r.x)
+        assert 0 < e < 5e-8, te.id
+        gen = simulate(r.t, r.x, p, eps=0.0)
+        fitted = simulate(r.t, lowpass_drive(r.t, r.x, drivefilter.resolve("auto", e))[0], p,
+                          eps=e, reversal="extreme")
+        noise_sd = FORCE_WHITE_SD * 0.5 * (p["fc_fwd"] + p["fc_bwd"])
+        assert np.max(np.abs(fitted - gen)) < 0.01 * noise_sd, te.id
+        np.testing.assert_array_equal(simulate(r.t, r.x, p, eps=e, reversal="extreme"), gen)
 
 def _campaign(root, t, x, y):
     camp = root / "camp"
@@ -145,11 +187,35 @@ def test_fit_records_the_setting_and_predict_filters_a_measured_input_alike(fit_
     assert v["tests"][0]["drive_lowpass"] == 20.0     # the measured test is filtered like the fit's
 
 
+def test_the_default_fit_filters_its_measured_record_and_predict_follows_by_eps(tmp_path):
+    """With FitConfig's defaults ("auto", "extreme") the noisy record is filtered at 20 x its
+    99 % frequency; predict then filters a measured input (eps > 0) at 20 too, and a generated
+    harmonic (eps = 0) not at all."""
+    t, clean, x = _noisy_sine(f=0.5, seconds=4.0)
+    y = simulate(t, clean, {k: v for k, v in TRUTH.items() if k != "force_offset"})
+    y = y + 20.0 * np.random.default_rng(1).standard_normal(t.size)
+    camp = _campaign(tmp_path, t, x, y)
+    cfg = FitConfig(priors={k: v for k, v in TRUTH.items() if k not in FREE},
+                    sampler=SamplerConfig(**TINY), n_predictive=4)
+    fit_campaign(camp, tmp_path / "fit", config=cfg)
+    summary = json.loads((tmp_path / "fit" / "summary.json").read_text())
+    assert summary["config"]["drive_lowpass"] == "auto" and summary["config"]["reversal"] == "extreme"
+    rec = json.loads(next((tmp_path / "fit").glob("*/fit.json")).read_text())["records"][0]
+    assert rec["drive_cutoff_hz"] == pytest.approx(drive_cutoff(t, x, 20.0))
+    X = tmp_path / "X.csv"
+    pd.DataFrame({"time": t, "displacement": x}).to_csv(X, index=False, float_format="%.12g")
+    meta = write_prediction(tmp_path / "fit", tmp_path / "p", input_csv=X, applied=1000, n_draws=10)
+    assert meta["input"]["drive_lowpass"] == 20.0
+    h = write_prediction(tmp_path / "fit", tmp_path / "h", harmonic=(AMP, 0.5), applied=1000,
+                         n_draws=10)
+    assert h["input"]["drive_lowpass"] is None
+
+
 def test_plan_and_cli_refuse_a_bad_multiple(fit_dir, tmp_path, capsys):
     root, _, _ = fit_dir
     from frictionuq.cli import main
     from frictionuq.errors import InputError
-    with pytest.raises(InputError, match="drive_lowpass must be a finite number > 0"):
+    with pytest.raises(InputError, match="drive_lowpass must be 'auto', 'off' or a finite number > 0"):
         plan(load_campaign(root / "camp"), config=FitConfig(drive_lowpass=0.0))
     out = tmp_path / "never"
     for cmd, bad in (("fit", "-3"), ("fit", "nan"), ("discover", "0")):

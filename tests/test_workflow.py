@@ -152,7 +152,10 @@ def test_arma_likelihood_accepted_but_not_with_heldout_stages(tmp_path):
     assert wf.fit_config().simulate_at == "raw"            # the default
     kept = load_workflow(_write(tmp_path, "", base.replace("[fit]", "[fit]\nsimulate_at = 'kept'")))
     assert kept.fit_config().simulate_at == "kept"
-    assert wf.fit_config().drive_lowpass is None           # off unless asked
+    assert wf.fit_config().drive_lowpass == "auto"         # 20 where eps > 0 (drivefilter)
+    assert wf.fit_config().reversal == "extreme"
+    off = load_workflow(_write(tmp_path, "", base.replace("[fit]", "[fit]\ndrive_lowpass = 'off'")))
+    assert off.fit_config().drive_lowpass is None
     lp = load_workflow(_write(tmp_path, "", base.replace("[fit]", "[fit]\ndrive_lowpass = 20")))
     assert lp.fit_config().drive_lowpass == 20
     assert lp.fit_config().record_options()["drive_lowpass"] == 20

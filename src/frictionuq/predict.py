@@ -204,14 +204,14 @@ class Prediction:
 def predict(fit_dir, applied_si: float, t, x, *, eps: float | str = 0.0, n_draws: int = 400,
             seed: int = 1, include_offset: bool = False, applied_signal=None,
             samples_per_cycle: int | None = None, summary: dict | None = None,
-            drive_lowpass: float | str | None = None) -> Prediction:
+            drive_lowpass: float | str | None = "auto") -> Prediction:
     """Posterior predictive bands and per-cycle figures of the force for drive (t, x) (SI) at
     applied force `applied_si` (SI). samples_per_cycle: set for a generated harmonic.
     eps: the reversal dead band (m): 0 for a clean generated drive, "auto" for a measured record
     (noise.default_eps(x), as `predict --input` and `validate` use). drive_lowpass: the model runs
-    on x low-passed like the fit's records (infer.drivefilter); "auto" takes the fit's
-    (fit_drive_lowpass(summary), as for a measured input on the command line); the bands keep
-    the given x. Warns (errors.ResultWarning) when the draws come from fits that did not
+    on x low-passed like the fit's records (infer.drivefilter); "auto" (default) takes the fit's
+    setting for this eps (fit_drive_lowpass(summary, eps): a fit's "auto" filters where eps > 0,
+    so not a clean drive at eps 0), a number or None sets it; the bands keep the given x. Warns (errors.ResultWarning) when the draws come from fits that did not
     converge or the input goes beyond BEYOND_FACTOR times the fitted stroke or peak speed."""
     check_draws(n_draws)
     check_seed(seed, "predict")
@@ -223,7 +223,7 @@ def predict(fit_dir, applied_si: float, t, x, *, eps: float | str = 0.0, n_draws
         from .noise import default_eps
         eps = default_eps(np.asarray(x, float))
     if drive_lowpass == "auto":
-        drive_lowpass = fit_drive_lowpass(summary)
+        drive_lowpass = fit_drive_lowpass(summary, eps)
     if not (math.isfinite(applied_si) and applied_si >= 0):
         raise InputError(f"applied force must be a finite number >= 0, got {applied_si!r}")
     t, x = np.asarray(t, float), np.asarray(x, float)
@@ -271,9 +271,12 @@ def _warn_about(fit_dir, draws, summary, t, x, applied_si) -> tuple[dict, dict]:
     return rng, ar
 
 
-def fit_drive_lowpass(summary: dict) -> float | None:
-    """The fit's drive low-pass multiple (FitConfig.drive_lowpass), None when off."""
-    return (summary.get("config") or {}).get("drive_lowpass")
+def fit_drive_lowpass(summary: dict, eps: float) -> float | None:
+    """The drive low-pass multiple the fit's setting (FitConfig.drive_lowpass) gives an input
+    with reversal dead band eps (m): its "auto" filters where eps > 0 (drivefilter.resolve), as
+    the fit filtered its records; None when off."""
+    from .infer import drivefilter
+    return drivefilter.resolve((summary.get("config") or {}).get("drive_lowpass"), eps)
 
 
 # ---------------------------------------------------------------- files
@@ -347,11 +350,11 @@ def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied
     lowpass_mult = None
     if input_csv is not None:
         t, x, sig = read_input(input_csv)
-        lowpass_mult = fit_drive_lowpass(summary)      # a measured record: filtered like the fit's
         try:
             eps = default_eps(x)
         except ValueError as e:
             raise InputError(f"{input_csv}: {e}") from None
+        lowpass_mult = fit_drive_lowpass(summary, eps)  # a measured record: filtered like the fit's
         spc = None
         inp = {"kind": "record", "file": str(input_csv), "sha256": sha256_file(input_csv),
                "samples": int(t.size), "duration_s": float(t[-1] - t[0]),

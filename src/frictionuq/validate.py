@@ -118,12 +118,12 @@ def validate(fit_dir, campaign_path, test_ids, out_dir, *, n_draws: int = 400, s
     # the folder is written whole (a bad test later in the list leaves nothing half-written)
     atomic.check_replaceable(fit_dir, out, "validation.json", "fit", "a validation folder")
     results, behind = [], []
-    lowpass_mult = fit_drive_lowpass(summary)    # measured records: filtered like the fit's
     with atomic.output_dir(out) as tmp:
         for tid in test_ids:
             te = by_id[tid]
             r = te.record
             eps = default_eps(r.x)
+            lowpass_mult = fit_drive_lowpass(summary, eps)   # filtered like the fit's records
             p = predict(fit_dir, te.applied, r.t, r.x, eps=eps, n_draws=n_draws, seed=seed,
                         include_offset=True, summary=summary, drive_lowpass=lowpass_mult)
             s = score(r.force, p.bands)

@@ -12,8 +12,8 @@ the campaign's own applied unit for `applied` (e.g. lb).
                 likelihood = "ar1" | "iid" | "arma", tests = [...], kinds = [...], samples_per_cycle = 400,
                 simulate_at = "raw" | "kept" (decimated records: model force filtered like the
                 data, or simulated on the decimated displacement), eps = "auto" | metres,
-                drive_lowpass = MULT (off when absent; infer.drivefilter), reversal = "detection" |
-                "extreme" (model.REVERSAL_RULES), n_predictive = 200, [fit.priors] (spec names: a number
+                drive_lowpass = "auto" (default: 20 where eps > 0) | "off" | MULT (infer.drivefilter),
+                reversal = "extreme" (default) | "detection" (model.REVERSAL_RULES), n_predictive = 200, [fit.priors] (spec names: a number
                 fixes the parameter, a table {dist, lower, upper, mu, sd} sets its prior; an
                 effect's parameter only where that effect is in the model, e.g. chatter's
                 opt-in tail b_ch = {dist = "uniform", lower = 0, upper = 1}),
@@ -231,6 +231,9 @@ def _fit(c: _Checker, t: dict) -> dict:
     eps = t.get("eps", "auto")
     if eps != "auto":
         eps = c.num(t, "eps", w, minimum=0)
+    lowpass = t.get("drive_lowpass", "auto")
+    if lowpass not in ("auto", "off"):
+        lowpass = c.num(t, "drive_lowpass", w, positive=True)
     model = c.str_(t, "model", w, "three_stage", MODELS)
     effects = c.strings(t, "effects", w, tuple(P.EFFECTS))
     try:
@@ -242,8 +245,8 @@ def _fit(c: _Checker, t: dict) -> dict:
             "tests": c.strings(t, "tests", w), "kinds": c.strings(t, "kinds", w, KINDS),
             "samples_per_cycle": c.num(t, "samples_per_cycle", w, 400.0, positive=True),
             "simulate_at": c.str_(t, "simulate_at", w, "raw", ("raw", "kept")),
-            "eps": eps, "drive_lowpass": c.num(t, "drive_lowpass", w, None, positive=True),
-            "reversal": c.str_(t, "reversal", w, "detection", ("detection", "extreme")),
+            "eps": eps, "drive_lowpass": lowpass,
+            "reversal": c.str_(t, "reversal", w, "extreme", ("detection", "extreme")),
             "n_predictive": c.num(t, "n_predictive", w, 200, integer=True, positive=True),
             "priors": _priors(c, t.get("priors", {}), "[fit.priors]"),
             "sampler": _sampler(c, t.get("sampler", {}), "[fit.sampler]")}

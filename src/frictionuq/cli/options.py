@@ -30,16 +30,28 @@ def _add_prior(s, whose: str) -> None:
                         f"NAME=normal:MU:SD[:LOWER:UPPER] sets it; {whose}")
 
 
+def _lowpass_value(text: str):
+    if text in ("auto", "off"):
+        return text
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"takes 'auto', 'off' or a multiple > 0 (e.g. 20), "
+                                         f"got {text!r}") from None
+
+
 def _add_drive_lowpass(s) -> None:
-    s.add_argument("--drive-lowpass", type=float, default=None, metavar="MULT",
+    s.add_argument("--drive-lowpass", type=_lowpass_value, default="auto", metavar="MULT",
                    help="low-pass each measured displacement (zero phase) at MULT x its 99 %% "
-                        "velocity-power frequency before the model runs on it (e.g. 20; default: "
-                        "off); predict and validate then filter their measured inputs alike")
-    s.add_argument("--reversal", choices=["detection", "extreme"], default="detection",
-                   help="where a reversal starts the backlash on a measured record: where the "
-                        "dead band eps detects it (the spec's rule, default) or at the motion's "
-                        "extreme (the same with eps = 0); with --drive-lowpass 20 the extreme "
-                        "removes the bias displacement noise puts into sigma0 (README)")
+                        "velocity-power frequency before the model runs on it; 'auto' (default): "
+                        "20 on a record with a reversal dead band eps > 0 (a measured one), off "
+                        "at eps = 0; 'off': the recorded samples; predict and validate then "
+                        "filter their measured inputs alike")
+    s.add_argument("--reversal", choices=["detection", "extreme"], default="extreme",
+                   help="where a reversal starts the backlash on a measured record: at the "
+                        "motion's extreme (default) or where the dead band eps detects it (the "
+                        "spec's causal rule); the same with eps = 0; with the drive low-pass the "
+                        "extreme removes the bias displacement noise puts into sigma0 (README)")
 
 
 class _Parser(argparse.ArgumentParser):

@@ -61,10 +61,13 @@ class FitConfig:
     min_kept_hz: float | None = None
     simulate_at: str = "raw"                       # "raw" or "kept" (infer.likelihood)
     eps: float | str = "auto"
-    drive_lowpass: float | None = None             # infer.drivefilter; None: the raw displacement
-    # where a reversal starts the backlash (model.REVERSAL_RULES): "detection", the spec's causal
-    # rule, or "extreme" (docs/model-choices.md, "Reversals at the extreme"); the same at eps 0
-    reversal: str = "detection"
+    # infer.drivefilter: "auto" (20 on a record with eps > 0, off at eps = 0), a multiple, or
+    # None / "off" (the raw displacement)
+    drive_lowpass: float | str | None = "auto"
+    # where a reversal starts the backlash (model.REVERSAL_RULES): "extreme" (default; docs/
+    # model-choices.md, "Reversals at the extreme") or "detection", the spec's causal rule; the
+    # same at eps 0
+    reversal: str = "extreme"
     kinds: tuple[str, ...] | None = None           # only tests of these kinds
     tests: tuple[str, ...] | None = None           # only these test ids
     sampler: SamplerConfig = field(default_factory=SamplerConfig)
@@ -98,7 +101,7 @@ class FitConfig:
         _positive("samples_per_cycle", self.samples_per_cycle)
         _positive("min_kept_hz", self.min_kept_hz, allow_none=True)
         try:
-            drivefilter.check_multiple(self.drive_lowpass)
+            self.drive_lowpass = drivefilter.check_multiple(self.drive_lowpass)
         except ValueError as e:
             raise InputError(f"fit: {e}") from None
         from ..model import REVERSAL_RULES

@@ -17,9 +17,13 @@ decimate does), with an odd extension six cutoff periods long at each end so tha
 carry no transient. The measured force and the reversal dead band eps (estimated on the raw
 displacement) are unchanged.
 
-Off by default: the spec's model runs on the recorded samples, and on the arts-d1 records (with
-multiple 20) the option fits every level better but mixes better at only two of six
-(docs/log-calibration.md, "Drive low-pass").
+Default "auto": on at AUTO_MULTIPLE (20) for a record whose reversal dead band eps is > 0 (a
+record treated as measured: eps "auto" is 8 x its estimated displacement-noise sd), off at
+eps = 0 (a clean generated drive). With the "extreme" reversal rule it removes the bias the
+displacement noise of the ARTS records puts into sigma0 (docs/log-calibration.md, 2026-12-01
+evening; benchmarks/bench_reversal.py); on a clean drive the filter at 20 x the 99 % frequency
+changes the force by far less than the records' noise (tests/test_infer_drivefilter.py). "off"
+(None) runs the model on the recorded samples, as the spec's simulator does.
 """
 from __future__ import annotations
 
@@ -35,15 +39,31 @@ MAX_FRACTION = 0.9
 PAD_PERIODS = 6.0
 
 
-def check_multiple(value, where: str = "drive_lowpass") -> float | None:
-    """None (off) or a finite multiple > 0; anything else raises ValueError naming `where`."""
-    if value is None:
+#: the multiple "auto" uses on a record with eps > 0
+AUTO_MULTIPLE = 20.0
+
+
+def check_multiple(value, where: str = "drive_lowpass") -> float | str | None:
+    """None (off; also "off"), "auto", or a finite multiple > 0; anything else raises ValueError
+    naming `where`."""
+    if value is None or (isinstance(value, str) and value == "off"):
         return None
+    if isinstance(value, str) and value == "auto":
+        return "auto"
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) or not (
             math.isfinite(value) and value > 0):
-        raise ValueError(f"{where} must be a finite number > 0 (a multiple of the record's 99 % "
-                         f"velocity-power frequency) or None for off, got {value!r}")
+        raise ValueError(f"{where} must be 'auto', 'off' or a finite number > 0 (a multiple of "
+                         f"the record's 99 % velocity-power frequency), got {value!r}")
     return float(value)
+
+
+def resolve(value, eps: float) -> float | None:
+    """The multiple a record with reversal dead band eps (m) is filtered at: "auto" gives
+    AUTO_MULTIPLE when eps > 0 and None (off) at eps = 0; a number is itself; None/"off" None."""
+    v = check_multiple(value)
+    if v == "auto":
+        return AUTO_MULTIPLE if float(eps) > 0.0 else None
+    return v
 
 
 def cutoff_hz(fs_hz: float, f99_hz: float, multiple: float | None) -> float | None:

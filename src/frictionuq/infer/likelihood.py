@@ -131,18 +131,20 @@ def prepare_record(test_id, t, x, force, applied=None, *, q: int | str = "auto",
     """Decimate one record (SI arrays) and prepare it for the likelihood. simulate_at: "raw"
     (the model runs on the raw-rate record and its force is decimated like the data's) or
     "kept" (the model runs on the decimated displacement). drive_lowpass: None, or low-pass the
-    displacement first at this multiple of its 99 % velocity-power frequency (drivefilter).
+    displacement first at this multiple of its 99 % velocity-power frequency, or "auto" (20 when
+    the record's eps > 0, else off; drivefilter.resolve).
     min_kept_hz: None, or the lowest kept rate (Hz) of the automatic q (decimation_factor).
     reversal: where the model's reversals start the backlash (model.REVERSAL_RULES)."""
     if simulate_at not in SIMULATE_AT:
         raise ValueError(f"simulate_at must be one of {SIMULATE_AT}, got {simulate_at!r}")
     if reversal not in M.REVERSAL_RULES:
         raise ValueError(f"reversal must be one of {M.REVERSAL_RULES}, got {reversal!r}")
-    mult = drivefilter.check_multiple(drive_lowpass)
+    drivefilter.check_multiple(drive_lowpass)
     t = np.asarray(t, float)
     x = np.asarray(x, float)
     force = np.asarray(force, float)
     e = default_eps(x) if eps == "auto" else float(eps)
+    mult = drivefilter.resolve(drive_lowpass, e)
     if q == "auto":
         q = decimation_factor(t, x, samples_per_cycle, frequency_hz, min_kept_hz)
     q = int(q)
