@@ -7,9 +7,10 @@ of sigma0, v_s and sigma1 beside the truth:
 
     .venv/bin/python benchmarks/bench_reversal.py [--configs clean noisy ...]
 
-The configurations: the clean drive (eps = 0), the noisy drive with the defaults (the spec's
-reversal rule, eps = 8 x the noise sd), with --drive-lowpass 20, with reversal "extreme", and
-with both. Measured 2026-12-01 (docs/log-calibration.md): only both together give the clean
+The configurations: the clean drive (eps = 0), the noisy drive with the spec's reversal rule
+and the recorded samples ("noisy": the defaults until 2026-12-01 night; eps = 8 x the noise sd),
+with --drive-lowpass 20, with reversal "extreme", and with both ("noisy+both": the defaults
+since). Measured 2026-12-01 (docs/log-calibration.md): only both together give the clean
 drive's posterior."""
 from __future__ import annotations
 

@@ -180,6 +180,19 @@ def test_parameter_tables_carry_units(report_run, rendered_report):
         assert header in part
 
 
+def test_fit_block_says_how_the_drive_was_prepared(report_run, rendered_report):
+    """Each fit's table names the drive low-pass cutoffs fit.json records per test and the
+    reversal rule of its config (the real records of the session's run have eps > 0: filtered)."""
+    part = unescape(sub_html(rendered_report["html"], "fit-applied-36lb"))
+    rec = json.loads((report_run["run_dir"] / "fit" / "applied-36lb" / "fit.json").read_text())
+    cuts = [r["drive_cutoff_hz"] for r in rec["records"]]
+    assert cuts and all(c > 0 for c in cuts), cuts
+    assert "displacement the model ran on" in part
+    for r in rec["records"]:
+        assert f"{r['id']} {r['drive_cutoff_hz']:.3g} Hz" in part
+    assert rec["config"]["reversal"] == "extreme" and "reversals at the motion's extreme" in part
+
+
 @pytest.mark.slow
 def test_unconverged_fits_are_flagged(report_run, rendered_report):
     summary = json.loads((report_run["run_dir"] / "fit" / "summary.json").read_text())

@@ -228,6 +228,23 @@ def _prior_predictive(passed, pp) -> str:
     return "FAILED" + (" (" + "; ".join(misses) + ")" if misses else "")
 
 
+def _drive_text(rec: dict) -> str:
+    """How the fit prepared each record's drive (fit.json's config and records): the low-pass
+    cutoffs and the reversal rule."""
+    cfg = rec.get("config") or {}
+    if not cfg:
+        return DASH
+    cuts = [(r.get("id"), r.get("drive_cutoff_hz")) for r in rec.get("records", [])]
+    on = [f"{i} {c:.3g} Hz" for i, c in cuts if c]
+    lp = cfg.get("drive_lowpass")
+    rule = {"auto": "drive_lowpass auto: 20 x the 99 % velocity-power frequency where eps > 0"}.get(
+        lp, f"drive_lowpass {lp}" if lp is not None else "drive_lowpass off")
+    head = ("low-passed at " + ", ".join(on) if on else "as recorded") + f" ({rule})"
+    rev = cfg.get("reversal", "detection")
+    return head + ("; reversals at the motion's extreme" if rev == "extreme" else
+                   "; reversals where the dead band eps detects them (the spec's rule)")
+
+
 def fit_blocks(ctx, f: dict) -> list[dict]:
     fid = f["id"]
     per = f.get("rmse_per_test") or {}
@@ -236,6 +253,7 @@ def fit_blocks(ctx, f: dict) -> list[dict]:
             (f"applied force ({ctx.applied_unit()})", ctx.applied_number(f.get("applied"))),
             ("model", f.get("model", DASH)), ("effects", ", ".join(f.get("effects") or []) or "none"),
             ("likelihood", f.get("likelihood", DASH)),
+            ("displacement the model ran on", _drive_text(rec)),
             ("RMSE of the posterior-median model, all tests (kN)", scaled(f.get("rmse"), 1e-3)),
             *[(f"RMSE, test {t} (kN)", scaled(v, 1e-3)) for t, v in per.items()],
             ("prior predictive check", _prior_predictive(f.get("prior_predictive_passed"),
