@@ -229,3 +229,35 @@ def test_fits_on_a_dask_localcluster(first_run):
     # reproducible: the same seed gives the same posterior on the cluster as locally
     for a, b in zip(before["fits"], after["fits"]):
         assert a["parameters"]["fc_fwd"]["mean"] == b["parameters"]["fc_fwd"]["mean"]
+
+
+def test_a_ground_motion_from_the_users_own_file(first_run):
+    """[[predict.ground_motion]] file = your own accelerogram (one value per line, dt and unit
+    given), relative to the workflow file: on the first run's fits only the new prediction
+    runs; the drive is written beside it and scaled to peak_m; editing the file makes that
+    prediction, and nothing else, stale."""
+    import numpy as np
+    folder, wf, _ = first_run
+    rng = np.random.default_rng(7)
+    t = np.arange(0, 12, 0.01)
+    acc = 0.2 * np.sin(2 * np.pi * 1.3 * t) * np.exp(-((t - 5) / 2.5) ** 2) \
+        + 0.02 * rng.standard_normal(t.size)
+    own = folder / "my-quake.txt"
+    own.write_text("".join(f"{a:.6g}\n" for a in acc))
+    wf2 = folder / "wf-own.toml"
+    wf2.write_text(WF.format(steps=200) + '\n[[predict.ground_motion]]\nfile = "my-quake.txt"\n'
+                   'dt = 0.01\nunit = "g"\npeak_m = 0.005\napplied = 36\n')
+    w = load_workflow(wf2)
+    e = w.config["predict"]["ground_motion"][0]
+    assert e["name"] == "my-quake-36" and e["file"] == str(own.resolve())
+    res = run(w, jobs=1)
+    assert res.ok and res.ran == ["predict:my-quake-36"], (res.ran, res.failed)
+    drive = np.loadtxt(w.out / "predict" / "inputs" / "my-quake-36.csv", delimiter=",", skiprows=1)
+    assert np.max(np.abs(drive[:, 1])) == pytest.approx(0.005, rel=1e-6)      # peak |x| = peak_m
+    assert (w.out / "predict" / "my-quake-36" / "bands.csv").is_file()
+    own.write_text("".join(f"{a:.6g}\n" for a in 1.1 * acc))
+    try:
+        assert _stale(load_workflow(wf2)) == {"predict:my-quake-36"}
+    finally:
+        own.write_text("".join(f"{a:.6g}\n" for a in acc))
+    assert _stale(load_workflow(wf.path)) == set()       # the first workflow is untouched

@@ -76,6 +76,14 @@ def test_the_stored_run_is_chosen_in_the_sampler_table(tmp_path):
      "phase", "unknown key"),
     ("\n[[predict.ground_motion]]\nrecord = 'northridge'\npeak_m = 0.01\napplied = 36\n",
      "record", "must be one of"),
+    ("\n[[predict.ground_motion]]\nfile = 'nowhere.AT2'\npeak_m = 0.01\napplied = 36\n",
+     "[[predict.ground_motion]][0].file", "is not a file"),
+    ("\n[[predict.ground_motion]]\nrecord = 'kobe'\nfile = 'x.AT2'\npeak_m = 0.01\napplied = 36\n",
+     "[[predict.ground_motion]][0]", "either record"),
+    ("\n[[predict.ground_motion]]\npeak_m = 0.01\napplied = 36\n",
+     "[[predict.ground_motion]][0]", "either record"),
+    ("\n[[predict.ground_motion]]\nrecord = 'kobe'\ndt = 0.01\npeak_m = 0.01\napplied = 36\n",
+     "[[predict.ground_motion]][0].dt", "applies to file only"),
     ("\n[compare]\nmodels = ['lugre']\n", "[compare].models", "two models"),
     ("\n[compare]\nenabled = 'yes'\n", "[compare].enabled", "true or false"),
     ("\n[discrepancy]\nenabled = 1\n", "[discrepancy].enabled", "true or false"),
@@ -91,6 +99,22 @@ def test_bad_keys_and_values_name_file_key_and_problem(tmp_path, extra, where, p
         load_workflow(p)
     msg = str(e.value)
     assert str(p) in msg and where in msg and problem in msg, msg
+
+
+def test_a_ground_motion_file_is_read_when_the_workflow_loads(tmp_path):
+    """A user's accelerogram is checked at load time: a single-column file without dt, or one
+    with text in it, is refused naming the workflow key and the file; a good one loads."""
+    (tmp_path / "q.txt").write_text("0.01\n0.02\n" * 20)
+    gm = "\n[[predict.ground_motion]]\nfile = 'q.txt'\npeak_m = 0.01\napplied = 36\n"
+    with pytest.raises(InputError, match=r"\[\[predict.ground_motion\]\]\[0\].file: .*q.txt.*give dt"):
+        load_workflow(_write(tmp_path, gm))
+    wf = load_workflow(_write(tmp_path, gm.replace("applied", "dt = 0.005\napplied")))
+    e = wf.config["predict"]["ground_motion"][0]
+    assert e["file"] == str((tmp_path / "q.txt").resolve()) and e["dt"] == 0.005
+    assert "predict:q-36" in plan(wf)
+    (tmp_path / "q.txt").write_text("0.01\nabc\n" * 20)
+    with pytest.raises(InputError, match=r"\.file: .*q.txt"):
+        load_workflow(_write(tmp_path, gm.replace("applied", "dt = 0.005\napplied")))
 
 
 def test_bad_fit_section_values(tmp_path):

@@ -21,8 +21,10 @@ the campaign's own applied unit for `applied` (e.g. lb).
     [law]       enabled = true, family = "auto" | "linear" | "threshold" | "saturating"
     [predict]   n_draws = 400, validate = [test ids of the campaign, predicted and scored],
                 [[predict.harmonic]] amplitude_m, frequency_hz, applied (, name)
-                [[predict.ground_motion]] record (a data/ground-motions key), peak_m, applied,
-                                          rate_hz = 256 (, name)
+                [[predict.ground_motion]] record (a data/ground-motions key) or file (your own
+                                          accelerogram, relative to this file: .AT2, or columns
+                                          / one value per line with dt, unit = "g", column = 0),
+                                          peak_m, applied, rate_hz = 256 (, name)
     [compare]   enabled = false, models = ["three_stage", "lugre"], tests/kinds (default: the
                 fit's), samples_per_cycle (default: the fit's), [compare.sampler] (default: the
                 fit's)
@@ -64,7 +66,7 @@ SECTIONS = {
     "discrepancy": {"enabled", "refit", "tests", "kinds", "extra_effects", "max_effects"},
 }
 HARMONIC_KEYS = {"name", "amplitude_m", "frequency_hz", "applied"}
-GROUND_KEYS = {"name", "record", "peak_m", "applied", "rate_hz"}
+GROUND_KEYS = {"name", "record", "file", "dt", "unit", "column", "peak_m", "applied", "rate_hz"}
 
 
 @dataclass
@@ -261,7 +263,44 @@ def _entries(c: _Checker, t: dict, key: str, allowed: set, where: str) -> list[d
     return v
 
 
-def _predict(c: _Checker, t: dict) -> dict:
+def _ground_source(c: _Checker, e: dict, wh: str, base: Path) -> dict:
+    """A ground motion's source: a shipped record's key, or the user's own accelerogram file
+    (resolved against the workflow's folder and read now, so that a bad file is refused before
+    any work)."""
+    from .groundmotion import RECORDS
+    if ("record" in e) == ("file" in e):
+        c.fail(wh, "give either record (a shipped accelerogram: " + ", ".join(RECORDS) +
+               ") or file (your own accelerogram), not both or neither")
+    if "record" in e:
+        for k in ("dt", "unit", "column"):
+            if k in e:
+                c.fail(f"{wh}.{k}", "applies to file only (a shipped record knows its own)")
+        return {"record": c.str_(e, "record", wh, required=True, choices=tuple(RECORDS))}
+    path = (base / c.str_(e, "file", wh, required=True)).resolve()
+    if not path.is_file():
+        c.fail(f"{wh}.file", f"{path} is not a file")
+    src = {"file": str(path), "dt": c.num(e, "dt", wh, None, positive=True),
+           "unit": c.str_(e, "unit", wh, None),
+           "column": c.num(e, "column", wh, 0, integer=True, minimum=0)}
+    try:
+        ground_record(src)
+    except InputError as err:
+        c.fail(f"{wh}.file", str(err))
+    return src
+
+
+def ground_record(src: dict):
+    """The accelerogram (groundmotion.GroundMotion, SI) of a [[predict.ground_motion]] entry."""
+    from .accelerograms import read_record
+    from .groundmotion import load_record
+    if "record" in src:
+        return load_record(src["record"])
+    p = Path(src["file"])
+    return read_record(p, dt=src.get("dt"), unit=src.get("unit"), column=src.get("column", 0),
+                       name=p.stem)
+
+
+def _predict(c: _Checker, t: dict, base: Path) -> dict:
     w = "[predict]"
     c.unknown(t, SECTIONS["predict"], "predict")
     out = {"n_draws": c.num(t, "n_draws", w, 400, integer=True, minimum=2),
@@ -285,11 +324,11 @@ def _predict(c: _Checker, t: dict) -> dict:
                                 "amplitude_m": amp, "frequency_hz": f, "applied": a})
     for i, e in enumerate(_entries(c, t, "ground_motion", GROUND_KEYS, w)):
         wh = f"[[predict.ground_motion]][{i}]"
-        from .groundmotion import RECORDS
-        rec = c.str_(e, "record", wh, required=True, choices=tuple(RECORDS))
+        src = _ground_source(c, e, wh, base)
+        label = src.get("record") or Path(src["file"]).stem
         peak = c.num(e, "peak_m", wh, positive=True, required=True)
         a = c.num(e, "applied", wh, minimum=0, required=True)
-        out["ground_motion"].append({"name": named(e, f"{rec}-{a:g}", wh), "record": rec,
+        out["ground_motion"].append({"name": named(e, f"{label}-{a:g}", wh), **src,
                                      "peak_m": peak, "applied": a,
                                      "rate_hz": c.num(e, "rate_hz", wh, 256.0, positive=True)})
     return out
@@ -347,7 +386,7 @@ def load_workflow(path) -> Workflow:
     c.unknown(lt, SECTIONS["law"], "law")
     cfg["law"] = {"enabled": c.bool_(lt, "enabled", "[law]", True),
                   "family": c.str_(lt, "family", "[law]", "auto", FAMILIES)}
-    cfg["predict"] = _predict(c, tables["predict"])
+    cfg["predict"] = _predict(c, tables["predict"], base)
     cfg["compare"] = _compare(c, tables["compare"])
     from .params import BEYOND_SPEC
     dt = tables["discrepancy"]

@@ -108,14 +108,17 @@ def plan(wf) -> dict[str, Task]:
     for e in p["harmonic"] + p["ground_motion"]:
         name = f"predict:{e['name']}"
         pred_names.append(name)
-        outs = [f"predict/{e['name']}"] + ([f"predict/inputs/{e['name']}.csv"]
-                                          if "record" in e else [])
+        ground = "record" in e or "file" in e
+        outs = [f"predict/{e['name']}"] + ([f"predict/inputs/{e['name']}.csv"] if ground else [])
         parts = {"n_draws": p["n_draws"], "seed": wf.seed, "input": e}
-        if "record" in e:
+        if ground:
             from ..campaign import sha256_file
-            from ..groundmotion import RECORDS, ground_motions_dir
-            ref = RECORDS[e["record"]]
-            gm = ground_motions_dir() / ref.folder / ref.file
+            if "record" in e:
+                from ..groundmotion import RECORDS, ground_motions_dir
+                ref = RECORDS[e["record"]]
+                gm = ground_motions_dir() / ref.folder / ref.file
+            else:
+                gm = Path(e["file"])
             parts["record_sha256"] = sha256_file(gm) if gm.is_file() else "missing"
         tasks.append(Task(name, "predict", ["fit/summary"], parts,
                           outs, {"input": e}))

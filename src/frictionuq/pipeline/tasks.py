@@ -137,16 +137,17 @@ def _predict(wf, task, log):
     from ..predict import write_prediction
     e = task.args["input"]
     out = Path(wf.out) / "predict" / e["name"]
-    if "record" in e:
+    if "record" in e or "file" in e:
         import numpy as np
-        from ..groundmotion import displacement_history, load_record
-        rec = load_record(e["record"])
+        from ..groundmotion import displacement_history
+        from ..workflow import ground_record
+        rec = ground_record(e)
         t, x = displacement_history(rec, peak_m=e["peak_m"], fs_out=e["rate_hz"])
         csv = Path(wf.out) / "predict" / "inputs" / f"{e['name']}.csv"
         body = "time,displacement\n" + "".join(f"{a:.9g},{b:.9g}\n" for a, b in
                                                  zip(np.asarray(t), np.asarray(x)))
         atomic.write_text(csv, body)
-        log(f"ground motion {e['record']}: {t.size} samples at {e['rate_hz']:g} Hz, peak "
+        log(f"ground motion {e.get('record') or e['file']}: {t.size} samples at {e['rate_hz']:g} Hz, peak "
             f"{e['peak_m'] * 1e3:g} mm")
         meta = write_prediction(fit_dir, out, input_csv=csv, applied=e["applied"],
                                 n_draws=p["n_draws"], seed=wf.seed)
