@@ -211,6 +211,32 @@ def test_the_default_fit_filters_its_measured_record_and_predict_follows_by_eps(
     assert h["input"]["drive_lowpass"] is None
 
 
+def test_predict_resolves_the_fits_setting_by_the_fits_and_the_inputs_eps(fit_dir):
+    """fit_drive_lowpass: a clean drive (eps 0) is never filtered; a fit's number is used as is;
+    a fit's "auto" filters where the fit's records were filtered: by the input's eps when the
+    fit's eps was "auto", by the fit's own eps when it was a number (eps 0: the fit was not
+    filtered, nor is the input). predict() takes "off" and refuses a bad value in one line."""
+    from frictionuq.errors import InputError
+    from frictionuq.predict import fit_drive_lowpass, predict
+    def s(lp, eps="auto"):
+        return {"config": {"drive_lowpass": lp, "eps": eps}}
+    assert fit_drive_lowpass(s("auto"), 1e-5) == 20.0
+    assert fit_drive_lowpass(s("auto"), 0.0) is None
+    assert fit_drive_lowpass(s(20.0), 0.0) is None
+    assert fit_drive_lowpass(s(7.0), 1e-5) == 7.0
+    assert fit_drive_lowpass(s("auto", eps=0.0), 1e-5) is None
+    assert fit_drive_lowpass(s("auto", eps=2e-5), 1e-5) == 20.0
+    assert fit_drive_lowpass(s(None), 1e-5) is None and fit_drive_lowpass({}, 1e-5) is None
+    root, t, x = fit_dir
+    kw = dict(eps=1e-5, n_draws=4, seed=1)
+    off = predict(root / "fit", 1000.0, t, x, drive_lowpass="off", **kw).bands
+    none = predict(root / "fit", 1000.0, t, x, drive_lowpass=None, **kw).bands
+    pd.testing.assert_frame_equal(off, none)
+    for bad in ("on", -1.0, float("nan")):
+        with pytest.raises(InputError, match="predict: drive_lowpass must be 'auto', 'off'"):
+            predict(root / "fit", 1000.0, t, x, drive_lowpass=bad, **kw)
+
+
 def test_plan_and_cli_refuse_a_bad_multiple(fit_dir, tmp_path, capsys):
     root, _, _ = fit_dir
     from frictionuq.cli import main
@@ -218,7 +244,11 @@ def test_plan_and_cli_refuse_a_bad_multiple(fit_dir, tmp_path, capsys):
     with pytest.raises(InputError, match="drive_lowpass must be 'auto', 'off' or a finite number > 0"):
         plan(load_campaign(root / "camp"), config=FitConfig(drive_lowpass=0.0))
     out = tmp_path / "never"
-    for cmd, bad in (("fit", "-3"), ("fit", "nan"), ("discover", "0")):
+    with pytest.raises(SystemExit) as ex:            # argparse's usage error, in one line
+        main(["fit", str(root / "camp"), "--out", str(out), "--drive-lowpass", "on"])
+    err = capsys.readouterr().err
+    assert ex.value.code == 2 and err.count("\n") == 1 and "--drive-lowpass" in err and "'auto', 'off'" in err
+    for cmd, bad in (("fit", "-3"), ("fit", "nan"), ("discover", "0"), ("compare", "-1")):
         code = main([cmd, str(root / "camp"), "--out", str(out), "--drive-lowpass", bad])
         err = capsys.readouterr().err
         assert code == 2, err

@@ -112,6 +112,13 @@ def test_a_ground_motion_file_is_read_when_the_workflow_loads(tmp_path):
     e = wf.config["predict"]["ground_motion"][0]
     assert e["file"] == str((tmp_path / "q.txt").resolve()) and e["dt"] == 0.005
     assert "predict:q-36" in plan(wf)
+    (tmp_path / "my quake.txt").write_text("0.01\n0.02\n" * 20)      # a stem that is no name
+    sp = load_workflow(_write(tmp_path, gm.replace("q.txt", "my quake.txt").replace(
+        "applied", "dt = 0.005\napplied")))
+    assert sp.config["predict"]["ground_motion"][0]["name"] == "my_quake-36"
+    (tmp_path / "r.AT2").write_text("x")
+    with pytest.raises(InputError, match=r"\]\[0\].dt: an .AT2 file states its own"):
+        load_workflow(_write(tmp_path, gm.replace("q.txt", "r.AT2").replace("applied", "dt = 0.01\napplied")))
     (tmp_path / "q.txt").write_text("0.01\nabc\n" * 20)
     with pytest.raises(InputError, match=r"\.file: .*q.txt"):
         load_workflow(_write(tmp_path, gm.replace("applied", "dt = 0.005\napplied")))
@@ -122,7 +129,7 @@ def test_bad_fit_section_values(tmp_path):
     for fit, where in [("model = 'coulomb'", "[fit].model"), ("likelihood = 'ar2'", "[fit].likelihood"),
                        ("simulate_at = 'fine'", "[fit].simulate_at"),
                        ("drive_lowpass = 0", "[fit].drive_lowpass"),
-                       ("drive_lowpass = 'on'", "[fit].drive_lowpass"),
+                       ("drive_lowpass = 'on'", "[fit].drive_lowpass: must be 'auto', 'off' or a number"),
                        ("effects = ['wobble']", "[fit].effects"), ("eps = -1.0", "[fit].eps"),
                        ("kinds = ['sine']", "[fit].kinds"), ("bogus = 1", "fit.bogus")]:
         p = _write(tmp_path, "", base.replace("[fit]", "[fit]\n" + fit))

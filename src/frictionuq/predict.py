@@ -209,15 +209,19 @@ def predict(fit_dir, applied_si: float, t, x, *, eps: float | str = 0.0, n_draws
     applied force `applied_si` (SI). samples_per_cycle: set for a generated harmonic.
     eps: the reversal dead band (m): 0 for a clean generated drive, "auto" for a measured record
     (noise.default_eps(x), as `predict --input` and `validate` use). drive_lowpass: the model runs
-    on x low-passed like the fit's records (infer.drivefilter); "auto" (default) takes the fit's
-    setting for this eps (fit_drive_lowpass(summary, eps): a fit's "auto" filters where eps > 0,
-    so not a clean drive at eps 0), a number or None sets it; the bands keep the given x. Warns (errors.ResultWarning) when the draws come from fits that did not
+    on x low-passed like the fit's records (infer.drivefilter); "auto" (default) takes the
+    fit's setting for this input (fit_drive_lowpass: a clean drive at eps 0 is not filtered),
+    a number sets the multiple, None or "off" runs on x itself; the bands keep the given x. Warns (errors.ResultWarning) when the draws come from fits that did not
     converge or the input goes beyond BEYOND_FACTOR times the fitted stroke or peak speed."""
     check_draws(n_draws)
     check_seed(seed, "predict")
-    for name, v in (("eps", eps), ("drive_lowpass", drive_lowpass)):
-        if isinstance(v, str) and v != "auto":
-            raise InputError(f"predict: {name} takes a number or 'auto', got {v!r}")
+    if isinstance(eps, str) and eps != "auto":
+        raise InputError(f"predict: eps takes a number in m or 'auto', got {eps!r}")
+    from .infer import drivefilter
+    try:
+        drive_lowpass = drivefilter.check_multiple(drive_lowpass, "predict: drive_lowpass")
+    except ValueError as e:
+        raise InputError(str(e)) from None
     summary = summary if summary is not None else load_summary(fit_dir)
     if eps == "auto":
         from .noise import default_eps
@@ -272,11 +276,17 @@ def _warn_about(fit_dir, draws, summary, t, x, applied_si) -> tuple[dict, dict]:
 
 
 def fit_drive_lowpass(summary: dict, eps: float) -> float | None:
-    """The drive low-pass multiple the fit's setting (FitConfig.drive_lowpass) gives an input
-    with reversal dead band eps (m): its "auto" filters where eps > 0 (drivefilter.resolve), as
-    the fit filtered its records; None when off."""
+    """The drive low-pass multiple an input with reversal dead band eps (m) is filtered at, by
+    the fit's setting (FitConfig.drive_lowpass): None for a clean drive (eps = 0) and when the
+    fit's is off; the fit's multiple when it is a number; for its "auto", 20 where the fit's
+    records were filtered, i.e. decided by the fit's own eps when it was a number (eps = 0: not
+    filtered) and by the input's eps when it was "auto" (drivefilter.resolve)."""
     from .infer import drivefilter
-    return drivefilter.resolve((summary.get("config") or {}).get("drive_lowpass"), eps)
+    cfg = summary.get("config") or {}
+    if float(eps) == 0.0:
+        return None
+    fit_eps = cfg.get("eps", "auto")
+    return drivefilter.resolve(cfg.get("drive_lowpass"), eps if fit_eps == "auto" else fit_eps)
 
 
 # ---------------------------------------------------------------- files

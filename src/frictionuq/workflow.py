@@ -234,8 +234,10 @@ def _fit(c: _Checker, t: dict) -> dict:
     if eps != "auto":
         eps = c.num(t, "eps", w, minimum=0)
     lowpass = t.get("drive_lowpass", "auto")
-    if lowpass not in ("auto", "off"):
-        lowpass = c.num(t, "drive_lowpass", w, positive=True)
+    if lowpass not in ("auto", "off") and (isinstance(lowpass, bool) or not isinstance(
+            lowpass, (int, float)) or not math.isfinite(lowpass) or lowpass <= 0):
+        c.fail(f"{w}.drive_lowpass", f"must be 'auto', 'off' or a number > 0 (a multiple of the "
+               f"record's 99 % velocity-power frequency), got {lowpass!r}")
     model = c.str_(t, "model", w, "three_stage", MODELS)
     effects = c.strings(t, "effects", w, tuple(P.EFFECTS))
     try:
@@ -279,6 +281,11 @@ def _ground_source(c: _Checker, e: dict, wh: str, base: Path) -> dict:
     path = (base / c.str_(e, "file", wh, required=True)).resolve()
     if not path.is_file():
         c.fail(f"{wh}.file", f"{path} is not a file")
+    if path.suffix.lower() == ".at2":
+        for k in ("dt", "unit", "column"):
+            if k in e:
+                c.fail(f"{wh}.{k}", "an .AT2 file states its own time step and unit (g); "
+                       "remove it")
     src = {"file": str(path), "dt": c.num(e, "dt", wh, None, positive=True),
            "unit": c.str_(e, "unit", wh, None),
            "column": c.num(e, "column", wh, 0, integer=True, minimum=0)}
@@ -325,7 +332,8 @@ def _predict(c: _Checker, t: dict, base: Path) -> dict:
     for i, e in enumerate(_entries(c, t, "ground_motion", GROUND_KEYS, w)):
         wh = f"[[predict.ground_motion]][{i}]"
         src = _ground_source(c, e, wh, base)
-        label = src.get("record") or Path(src["file"]).stem
+        label = src.get("record") or (re.sub(r"[^A-Za-z0-9._+-]+", "_", Path(src["file"]).stem)
+                                         .lstrip("._+-") or "ground-motion")
         peak = c.num(e, "peak_m", wh, positive=True, required=True)
         a = c.num(e, "applied", wh, minimum=0, required=True)
         out["ground_motion"].append({"name": named(e, f"{label}-{a:g}", wh), **src,

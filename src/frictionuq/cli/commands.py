@@ -145,7 +145,8 @@ def _cmd_compare(a):
     models = list(dict.fromkeys(a.model or ["three_stage", "lugre"]))
     from ..infer.priors import prior_options
     pri = prior_options(a.prior)
-    cfgs = {m: FitConfig(model=m, likelihood=a.likelihood, seed=a.seed, sampler=samp, priors=pri)
+    cfgs = {m: FitConfig(model=m, likelihood=a.likelihood, seed=a.seed, sampler=samp, priors=pri,
+                         drive_lowpass=a.drive_lowpass, reversal=a.reversal)
             for m in models}
     r = compare_campaign(a.campaign, a.out, cfgs, kinds=a.kind, tests=a.test, seed=a.seed,
                          offset=a.offset, log=lambda m: print(m, file=sys.stderr), jobs=a.jobs)

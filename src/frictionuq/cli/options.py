@@ -41,12 +41,13 @@ def _lowpass_value(text: str):
 
 
 def _add_drive_lowpass(s) -> None:
-    s.add_argument("--drive-lowpass", type=_lowpass_value, default="auto", metavar="MULT",
+    s.add_argument("--drive-lowpass", type=_lowpass_value, default="auto", metavar="auto|off|MULT",
                    help="low-pass each measured displacement (zero phase) at MULT x its 99 %% "
                         "velocity-power frequency before the model runs on it; 'auto' (default): "
-                        "20 on a record with a reversal dead band eps > 0 (a measured one), off "
-                        "at eps = 0; 'off': the recorded samples; predict and validate then "
-                        "filter their measured inputs alike")
+                        "20 on every record with a reversal dead band eps > 0 (eps 'auto' gives "
+                        "any record read from a file one), off only at eps = 0; 'off': the "
+                        "recorded samples; predict and validate then filter their measured inputs "
+                        "alike")
     s.add_argument("--reversal", choices=["detection", "extreme"], default="extreme",
                    help="where a reversal starts the backlash on a measured record: at the "
                         "motion's extreme (default) or where the dead band eps detects it (the "
@@ -156,6 +157,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("compare", help="model comparison per applied force: RMSE and leave-one-test-out ELPD")
     s.add_argument("campaign", help="campaign folder or ingested folder")
+    _add_drive_lowpass(s)
     s.add_argument("--out", required=True, help="output folder: compare.json, compare.csv")
     s.add_argument("--model", action="append", metavar="MODEL",
                    help="a model to compare (repeatable; default three_stage and lugre)")

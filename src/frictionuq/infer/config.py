@@ -61,8 +61,8 @@ class FitConfig:
     min_kept_hz: float | None = None
     simulate_at: str = "raw"                       # "raw" or "kept" (infer.likelihood)
     eps: float | str = "auto"
-    # infer.drivefilter: "auto" (20 on a record with eps > 0, off at eps = 0), a multiple, or
-    # None / "off" (the raw displacement)
+    # infer.drivefilter: "auto" (20 on a record with eps > 0, which eps "auto" gives any record
+    # read from a file; off only at eps = 0), a multiple, or None / "off" (the raw displacement)
     drive_lowpass: float | str | None = "auto"
     # where a reversal starts the backlash (model.REVERSAL_RULES): "extreme" (default; docs/
     # model-choices.md, "Reversals at the extreme") or "detection", the spec's causal rule; the
@@ -103,7 +103,7 @@ class FitConfig:
         try:
             self.drive_lowpass = drivefilter.check_multiple(self.drive_lowpass)
         except ValueError as e:
-            raise InputError(f"fit: {e}") from None
+            raise InputError(f"fit config: {e}") from None
         from ..model import REVERSAL_RULES
         if self.reversal not in REVERSAL_RULES:
             raise InputError(f"fit config: reversal must be one of {', '.join(REVERSAL_RULES)}, "

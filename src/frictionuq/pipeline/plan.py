@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -111,6 +112,8 @@ def plan(wf) -> dict[str, Task]:
         ground = "record" in e or "file" in e
         outs = [f"predict/{e['name']}"] + ([f"predict/inputs/{e['name']}.csv"] if ground else [])
         parts = {"n_draws": p["n_draws"], "seed": wf.seed, "input": e}
+        if "file" in e:      # the task's key: the file's path relative to the workflow, and its bytes
+            parts["input"] = {**e, "file": os.path.relpath(e["file"], wf.path.parent)}
         if ground:
             from ..campaign import sha256_file
             if "record" in e:

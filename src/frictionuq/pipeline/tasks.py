@@ -147,7 +147,8 @@ def _predict(wf, task, log):
         body = "time,displacement\n" + "".join(f"{a:.9g},{b:.9g}\n" for a, b in
                                                  zip(np.asarray(t), np.asarray(x)))
         atomic.write_text(csv, body)
-        log(f"ground motion {e.get('record') or e['file']}: {t.size} samples at {e['rate_hz']:g} Hz, peak "
+        log(f"ground motion {e.get('record') or e['file']}: {t.size} samples at "
+            f"{e['rate_hz']:g} Hz, peak "
             f"{e['peak_m'] * 1e3:g} mm")
         meta = write_prediction(fit_dir, out, input_csv=csv, applied=e["applied"],
                                 n_draws=p["n_draws"], seed=wf.seed)

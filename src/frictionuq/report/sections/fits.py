@@ -234,12 +234,16 @@ def _drive_text(rec: dict) -> str:
     cfg = rec.get("config") or {}
     if not cfg:
         return DASH
+    from ...infer.drivefilter import AUTO_MULTIPLE
     cuts = [(r.get("id"), r.get("drive_cutoff_hz")) for r in rec.get("records", [])]
-    on = [f"{i} {c:.3g} Hz" for i, c in cuts if c]
+    each = [f"{i} {c:.3g} Hz" if c else f"{i} as recorded" for i, c in cuts]
     lp = cfg.get("drive_lowpass")
-    rule = {"auto": "drive_lowpass auto: 20 x the 99 % velocity-power frequency where eps > 0"}.get(
-        lp, f"drive_lowpass {lp}" if lp is not None else "drive_lowpass off")
-    head = ("low-passed at " + ", ".join(on) if on else "as recorded") + f" ({rule})"
+    if lp == "auto":
+        rule = f"drive_lowpass auto: {AUTO_MULTIPLE:g} x the 99 % velocity-power frequency where eps > 0"
+    else:
+        rule = f"drive_lowpass {lp:g} x that frequency" if lp is not None else "drive_lowpass off"
+    head = ("low-passed: " + ", ".join(each) if any(c for _, c in cuts) else "as recorded") + \
+        f" ({rule})"
     rev = cfg.get("reversal", "detection")
     return head + ("; reversals at the motion's extreme" if rev == "extreme" else
                    "; reversals where the dead band eps detects them (the spec's rule)")
