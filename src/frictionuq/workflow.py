@@ -12,8 +12,9 @@ the campaign's own applied unit for `applied` (e.g. lb).
                 likelihood = "ar1" | "iid" | "arma", tests = [...], kinds = [...], samples_per_cycle = 400,
                 simulate_at = "raw" | "kept" (decimated records: model force filtered like the
                 data, or simulated on the decimated displacement), eps = "auto" | metres,
-                drive_lowpass = "auto" (default: 20 where eps > 0) | "off" | MULT (infer.drivefilter),
-                reversal = "extreme" (default) | "detection" (model.REVERSAL_RULES), n_predictive = 200, [fit.priors] (spec names: a number
+                drive_lowpass = "auto" (default: 20 where eps > 0) | "off" | MULT
+                (infer.drivefilter), reversal = "extreme" (default) | "detection"
+                (model.REVERSAL_RULES), n_predictive = 200, [fit.priors] (spec names: a number
                 fixes the parameter, a table {dist, lower, upper, mu, sd} sets its prior; an
                 effect's parameter only where that effect is in the model, e.g. chatter's
                 opt-in tail b_ch = {dist = "uniform", lower = 0, upper = 1}),

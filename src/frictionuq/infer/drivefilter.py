@@ -20,9 +20,9 @@ displacement) are unchanged.
 Default "auto": on at AUTO_MULTIPLE (20) for a record whose reversal dead band eps is > 0 (a
 record treated as measured: eps "auto" is 8 x its estimated displacement-noise sd, which is
 > 0 for any record read from a file, a clean drive rounded in its CSV included), off only at
-eps = 0 (a drive generated in memory, a harmonic, or a fit with eps = 0). With the "extreme" reversal rule it removes the bias the
-displacement noise of the ARTS records puts into sigma0 (docs/log-calibration.md, 2026-12-01
-evening; benchmarks/bench_reversal.py); on a clean drive the filter at 20 x the 99 % frequency
+eps = 0 (a drive generated in memory, a harmonic, or a fit with eps = 0). With the "extreme"
+reversal rule it removes the bias the displacement noise of the ARTS records puts into sigma0
+(docs/log-calibration.md, 2026-12-01 evening; benchmarks/bench_reversal.py); on a clean drive the filter at 20 x the 99 % frequency
 changes the force by far less than the records' noise (tests/test_infer_drivefilter.py). "off"
 (None) runs the model on the recorded samples, as the spec's simulator does.
 """
