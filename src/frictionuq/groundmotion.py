@@ -251,6 +251,16 @@ RECORDS: dict[str, RecordRef] = {r.key: r for r in (
 )}
 
 
+def load_source(src: dict) -> GroundMotion:
+    """The accelerogram (SI) of a workflow's [[predict.ground_motion]] entry: a shipped record
+    {"record": key}, or the user's file {"file", "dt", "unit", "column"} (read_record)."""
+    if "record" in src:
+        return load_record(src["record"])
+    p = Path(src["file"])
+    return read_record(p, dt=src.get("dt"), unit=src.get("unit"), column=src.get("column", 0),
+                       name=p.stem)
+
+
 def load_record(key: str, root=None) -> GroundMotion:
     """One of the shipped accelerograms by key (`RECORDS`), in SI."""
     try:

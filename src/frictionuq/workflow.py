@@ -274,38 +274,27 @@ def _ground_source(c: _Checker, e: dict, wh: str, base: Path) -> dict:
     if ("record" in e) == ("file" in e):
         c.fail(wh, "give either record (a shipped accelerogram: " + ", ".join(RECORDS) +
                ") or file (your own accelerogram), not both or neither")
-    if "record" in e:
+    def refuse_format_keys(why: str) -> None:
         for k in ("dt", "unit", "column"):
             if k in e:
-                c.fail(f"{wh}.{k}", "applies to file only (a shipped record knows its own)")
+                c.fail(f"{wh}.{k}", why)
+    if "record" in e:
+        refuse_format_keys("applies to file only (a shipped record knows its own)")
         return {"record": c.str_(e, "record", wh, required=True, choices=tuple(RECORDS))}
     path = (base / c.str_(e, "file", wh, required=True)).resolve()
     if not path.is_file():
         c.fail(f"{wh}.file", f"{path} is not a file")
     if path.suffix.lower() == ".at2":
-        for k in ("dt", "unit", "column"):
-            if k in e:
-                c.fail(f"{wh}.{k}", "an .AT2 file states its own time step and unit (g); "
-                       "remove it")
+        refuse_format_keys("an .AT2 file states its own time step and unit (g); remove it")
     src = {"file": str(path), "dt": c.num(e, "dt", wh, None, positive=True),
            "unit": c.str_(e, "unit", wh, None),
            "column": c.num(e, "column", wh, 0, integer=True, minimum=0)}
+    from .groundmotion import load_source
     try:
-        ground_record(src)
+        load_source(src)
     except InputError as err:
         c.fail(f"{wh}.file", str(err))
     return src
-
-
-def ground_record(src: dict):
-    """The accelerogram (groundmotion.GroundMotion, SI) of a [[predict.ground_motion]] entry."""
-    from .accelerograms import read_record
-    from .groundmotion import load_record
-    if "record" in src:
-        return load_record(src["record"])
-    p = Path(src["file"])
-    return read_record(p, dt=src.get("dt"), unit=src.get("unit"), column=src.get("column", 0),
-                       name=p.stem)
 
 
 def _predict(c: _Checker, t: dict, base: Path) -> dict:

@@ -139,7 +139,6 @@ def prepare_record(test_id, t, x, force, applied=None, *, q: int | str = "auto",
         raise ValueError(f"simulate_at must be one of {SIMULATE_AT}, got {simulate_at!r}")
     if reversal not in M.REVERSAL_RULES:
         raise ValueError(f"reversal must be one of {M.REVERSAL_RULES}, got {reversal!r}")
-    drivefilter.check_multiple(drive_lowpass)
     t = np.asarray(t, float)
     x = np.asarray(x, float)
     force = np.asarray(force, float)

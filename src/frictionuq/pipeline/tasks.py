@@ -139,9 +139,8 @@ def _predict(wf, task, log):
     out = Path(wf.out) / "predict" / e["name"]
     if "record" in e or "file" in e:
         import numpy as np
-        from ..groundmotion import displacement_history
-        from ..workflow import ground_record
-        rec = ground_record(e)
+        from ..groundmotion import displacement_history, load_source
+        rec = load_source(e)
         t, x = displacement_history(rec, peak_m=e["peak_m"], fs_out=e["rate_hz"])
         csv = Path(wf.out) / "predict" / "inputs" / f"{e['name']}.csv"
         body = "time,displacement\n" + "".join(f"{a:.9g},{b:.9g}\n" for a, b in
