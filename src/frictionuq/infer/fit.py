@@ -217,6 +217,11 @@ def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True
     atomic.write_json(fdir / "fit.json", jsonable(record))
     log(f"fit {spec.id}: {'converged' if entry['converged'] else 'NOT converged'} "
         f"after {res.n_steps} steps ({entry['seconds']:.0f} s), rmse {entry['rmse']:.4g} N")
+    bt = entry["between_tests"]
+    if bt and bt["significant"]:
+        log(f"fit {spec.id}: the tests' force zeros differ beyond the noise (per-test mean "
+            f"residual spread {bt['spread_N']:.0f} N, chi-square {bt['chi2']:.1f} on {bt['df']} "
+            f"degrees of freedom, p = {bt['p_value']:.2g}): a shared force_offset does not fit them")
     return entry
 
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import azadapter, params as P
-from . import noisemodel
+from . import between, noisemodel
 
 WEAK_CONTRACTION = 0.5       # posterior sd / prior sd above this: "close to the prior"
 STRONG_CORRELATION = 0.9     # |rho| above this: a strongly correlated pair
@@ -204,6 +204,7 @@ def summary_entry(spec, logpost, res, dt, post, pred) -> dict:
                                 "draws, and the sampler's own stopping rule met on the whole kept "
                                 "chain (R-hat, ESS, > 50 tau) before the step cap",
             "rmse": total, "rmse_per_test": per, "identifiability": identifiability(sp, post),
+            "between_tests": between.check_fit(logpost, post, pred),
             "sampler_steps": res.n_steps, "tau_max": float(np.max(res.tau)),
             "model_evaluations": res.n_evals,
             **({"noise_theta": {r.id: r.noise_theta for r in logpost.records}}

@@ -202,7 +202,25 @@ def identifiability(f: dict) -> list[dict]:
     bounds = idf.get("at_prior_bound") or {}
     items.append("at a prior bound: " + (", ".join(f"{n} ({side})" for n, side in bounds.items())
                                          if bounds else "none"))
-    return [B.html(bullet_list(items)), B.note(f"Rule: {idf.get('rule', '')}")]
+    out = [B.html(bullet_list(items)), B.note(f"Rule: {idf.get('rule', '')}")]
+    return out + _between_tests(f.get("between_tests"))
+
+
+def _between_tests(bt) -> list[dict]:
+    """Whether the fit's tests share one force zero (infer.between), with each test's mean
+    residual; nothing for a single-test fit."""
+    if not isinstance(bt, dict):
+        return []
+    verdict = ("differ beyond the noise: a shared force_offset does not fit them, and bands for a "
+               "new test are too narrow by about the spread" if bt.get("significant")
+               else "agree within the noise")
+    each = ", ".join(f"{t} {num(m, 4)} N (se {num(bt.get('se_N', {}).get(t), 3)} N)"
+                     for t, m in (bt.get("mean_residual_N") or {}).items())
+    text = (f"The tests' force zeros {verdict} (spread of the per-test mean residuals "
+            f"{num(bt.get('spread_N'), 4)} N; chi-square {num(bt.get('chi2'), 4)} on {bt.get('df')} "
+            f"degrees of freedom, p = {num(bt.get('p_value'), 2)}, alpha {bt.get('alpha')}). "
+            f"Mean residual per test: {each}.")
+    return [B.html(bullet_list([text])), B.note(f"Method: {bt.get('method', '')}")]
 
 
 _FIGURES = {"peak_N": ("peak force", 1e-3, "kN"), "trough_N": ("trough force", 1e-3, "kN"),
