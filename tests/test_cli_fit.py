@@ -97,20 +97,10 @@ def test_bad_prior_options_are_refused_before_any_file(tmp_path, capsys, command
     assert not out.exists()
 
 
-@pytest.mark.parametrize("command, target", [
-    ("fit", "frictionuq.infer.fit.fit_campaign"),
-    ("discover", "frictionuq.discrepancy.discover.discover"),
-    ("compare", "frictionuq.infer.compare.compare_campaign"),
-])
-def test_prior_options_reach_the_fit_config_and_its_space(tmp_path, monkeypatch, command, target):
-    """--prior reaches FitConfig.priors of fit and discover (the library call is stubbed), and
-    that config's space fixes k2, samples b_ch only with chatter and bounds sigma2 as given."""
+def _configs_seen(monkeypatch, target: str, argv: list[str]) -> list:
+    """The FitConfigs the command line hands the library function `target` (stubbed: it stops
+    the command at its call)."""
     import importlib
-
-    from frictionuq.campaign import load_campaign
-    from frictionuq.infer.fit import build_space, plan
-    from frictionuq.infer.priors import record_scales
-
     seen = []
 
     class Stop(Exception):
@@ -124,8 +114,25 @@ def test_prior_options_reach_the_fit_config_and_its_space(tmp_path, monkeypatch,
     mod, name = target.rsplit(".", 1)
     monkeypatch.setattr(importlib.import_module(mod), name, stub)
     with pytest.raises(Stop):
-        main([command, TWIN, "--out", str(tmp_path / "o"), "--prior", "k2=2e5", "--prior",
-              "b_ch=uniform:0:1", "--prior", "sigma2=loguniform:10:1000"])
+        main(argv)
+    return seen
+
+
+@pytest.mark.parametrize("command, target", [
+    ("fit", "frictionuq.infer.fit.fit_campaign"),
+    ("discover", "frictionuq.discrepancy.discover.discover"),
+    ("compare", "frictionuq.infer.compare.compare_campaign"),
+])
+def test_prior_options_reach_the_fit_config_and_its_space(tmp_path, monkeypatch, command, target):
+    """--prior reaches FitConfig.priors of fit and discover (the library call is stubbed), and
+    that config's space fixes k2, samples b_ch only with chatter and bounds sigma2 as given."""
+    from frictionuq.campaign import load_campaign
+    from frictionuq.infer.fit import build_space, plan
+    from frictionuq.infer.priors import record_scales
+
+    seen = _configs_seen(monkeypatch, target, [
+        command, TWIN, "--out", str(tmp_path / "o"), "--prior", "k2=2e5", "--prior",
+        "b_ch=uniform:0:1", "--prior", "sigma2=loguniform:10:1000"])
     cfg = seen[0]
     assert len(seen) == (2 if command == "compare" else 1)     # compare: three_stage and lugre
     assert all(c.priors == cfg.priors for c in seen) and cfg.priors == {"k2": 2e5, "b_ch": {"dist": "uniform", "lower": 0.0, "upper": 1.0},
@@ -199,3 +206,23 @@ def test_fit_says_which_posteriors_press_against_a_prior_bound(tmp_path, monkeyp
     out = capsys.readouterr().out
     assert "note: applied-500psi: posterior pressed against a prior bound: sigma0 (lower)" in out
     assert "note: applied-1000psi" not in out
+
+
+@pytest.mark.parametrize("command, target", [
+    ("fit", "frictionuq.infer.fit.fit_campaign"),
+    ("discover", "frictionuq.discrepancy.discover.discover"),
+    ("compare", "frictionuq.infer.compare.compare_campaign"),
+])
+def test_force_offset_option_reaches_the_fit_config(tmp_path, monkeypatch, command, target):
+    """--force-offset per_test reaches every FitConfig of fit, discover and compare (the library
+    call stubbed); the default is one shared zero; a per-test config's space samples no
+    force_offset and keeps its box instead."""
+    from frictionuq.campaign import load_campaign
+    from frictionuq.infer.fit import build_space, plan
+    from frictionuq.infer.priors import record_scales
+    for flag, want in (([], "shared"), (["--force-offset", "per_test"], "per_test")):
+        seen = _configs_seen(monkeypatch, target, [command, TWIN, "--out", str(tmp_path / "o")] + flag)
+        assert seen and all(c.force_offset == want for c in seen), seen
+    spec = plan(load_campaign(TWIN), "applied", seen[0])[0]
+    space = build_space(spec, record_scales([t.record for t in spec.tests]))
+    assert "force_offset" not in space.names and space.offset_box[0] < 0 < space.offset_box[1]

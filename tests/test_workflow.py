@@ -195,3 +195,13 @@ def test_arma_likelihood_accepted_but_not_with_heldout_stages(tmp_path):
         with pytest.raises(InputError) as e:
             load_workflow(p)
         assert str(p) in str(e.value) and "[fit].likelihood" in str(e.value) and sec in str(e.value)
+
+
+def test_workflow_force_offset_key(tmp_path):
+    """[fit] force_offset = "per_test" reaches the fit config; the default is "shared"; any other
+    value is refused naming the key."""
+    assert load_workflow(_write(tmp_path, "", BASE)).fit_config().force_offset == "shared"
+    wf = load_workflow(_write(tmp_path, "", BASE.replace("[fit]", "[fit]\nforce_offset = 'per_test'")))
+    assert wf.fit_config().force_offset == "per_test"
+    with pytest.raises(InputError, match=r"\[fit\]\.force_offset"):
+        load_workflow(_write(tmp_path, "", BASE.replace("[fit]", "[fit]\nforce_offset = 'each'")))

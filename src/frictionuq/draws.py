@@ -58,9 +58,12 @@ class Draws:
 
 def _take(posts: list[FitPosterior], n: int, rng) -> dict:
     """n joint draws from a mixture (equal weights) of fits: named parameters (free + fixed),
-    offset and one test's noise per draw."""
+    offset and one test's noise per draw. With per-test offsets (FitConfig.force_offset) the offset
+    is that same test's own: a new test's zero is drawn from the fitted tests' zeros."""
     which = rng.integers(len(posts), size=n) if len(posts) > 1 else np.zeros(n, int)
     names = set().union(*(set(p.params) | set(p.fixed) for p in posts))
+    if any(p.offsets is not None for p in posts):    # per-test offsets: the drawn test's own
+        names.add("force_offset")
     out = {k: np.full(n, np.nan) for k in names | {"_sigma", "_phi", "_rate", "_theta"}}
     for k, p in enumerate(posts):
         sel = np.flatnonzero(which == k)
@@ -73,6 +76,8 @@ def _take(posts: list[FitPosterior], n: int, rng) -> dict:
                 out[nm][sel] = p.params[nm][idx]
             elif nm in p.fixed:
                 out[nm][sel] = p.fixed[nm]
+        if p.offsets is not None:
+            out["force_offset"][sel] = p.offsets[idx, j]
         out["_sigma"][sel] = p.sigma[idx, j]
         out["_phi"][sel] = p.phi[idx, j]
         out["_rate"][sel] = p.rate_hz[j]

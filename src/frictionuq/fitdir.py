@@ -100,6 +100,7 @@ class FitPosterior:
     rate_hz: np.ndarray                # (T,) decimated sample rate of each test's record
     tests: list[str] = field(default_factory=list)
     theta: np.ndarray | None = None    # (T,) ARMA(1,1) MA coefficient (likelihood `arma`), else 0
+    offsets: np.ndarray | None = None  # (M, T) each test's own force offset (per-test offsets)
 
     @property
     def size(self) -> int:
@@ -129,6 +130,8 @@ def load_posterior(fit_dir, fit_id: str) -> FitPosterior:
         tests = [str(v) for v in post["test"].values]
         phi = (np.asarray(post["noise_phi"].values, float) if "noise_phi" in post.data_vars
                else np.zeros_like(sig))
+        per_test = "force_offset" in post.data_vars and "test" in post["force_offset"].dims
+        offs = np.asarray(post["force_offset"].values, float) if per_test else None
     except (OSError, KeyError, ValueError) as e:
         raise InputError(f"{nc}: cannot read the posterior ({' '.join(str(e).split())})") from None
     missing = [t for t in tests if t not in rates]
@@ -139,4 +142,5 @@ def load_posterior(fit_dir, fit_id: str) -> FitPosterior:
     return FitPosterior(fit_id, applied, model, effects, params, fixed,
                         sig.reshape(-1, T), phi.reshape(-1, T),
                         np.array([rates[t] for t in tests]), tests,
-                        np.array([thetas[t] for t in tests]))
+                        np.array([thetas[t] for t in tests]),
+                        None if offs is None else offs.reshape(-1, T))

@@ -14,7 +14,8 @@ the campaign's own applied unit for `applied` (e.g. lb).
                 data, or simulated on the decimated displacement), eps = "auto" | metres,
                 drive_lowpass = "auto" (default: 20 where eps > 0) | "off" | MULT
                 (infer.drivefilter), reversal = "extreme" (default) | "detection"
-                (model.REVERSAL_RULES), n_predictive = 200, [fit.priors] (spec names: a number
+                (model.REVERSAL_RULES), force_offset = "shared" (default) | "per_test" (each
+                test's own load-cell zero, integrated out), n_predictive = 200, [fit.priors] (spec names: a number
                 fixes the parameter, a table {dist, lower, upper, mu, sd} sets its prior; an
                 effect's parameter only where that effect is in the model, e.g. chatter's
                 opt-in tail b_ch = {dist = "uniform", lower = 0, upper = 1}),
@@ -59,7 +60,7 @@ PUBLISHED = ("none", "brfd", "mfd")
 SECTIONS = {
     "workflow": {"name", "description", "campaign", "seed", "output", "report"},
     "fit": {"by", "model", "effects", "likelihood", "tests", "kinds", "samples_per_cycle",
-            "simulate_at", "eps", "drive_lowpass", "reversal", "n_predictive", "priors", "sampler"},
+            "simulate_at", "eps", "drive_lowpass", "reversal", "force_offset", "n_predictive", "priors", "sampler"},
     "law": {"enabled", "family"},
     "predict": {"n_draws", "validate", "harmonic", "ground_motion"},
     "compare": {"enabled", "models", "tests", "kinds", "samples_per_cycle", "sampler"},
@@ -109,7 +110,7 @@ class Workflow:
                          priors=dict(f["priors"]) if compare_model in (None, f["model"]) else {},
                          samples_per_cycle=spc, simulate_at=f["simulate_at"], eps=f["eps"],
                          drive_lowpass=f["drive_lowpass"], reversal=f["reversal"],
-                         n_predictive=f["n_predictive"],
+                         force_offset=f["force_offset"], n_predictive=f["n_predictive"],
                          kinds=tuple(f["kinds"]) if f["kinds"] else None,
                          tests=tuple(f["tests"]) if f["tests"] else None,
                          sampler=SamplerConfig(**{**sampler, "progress": False}),
@@ -252,6 +253,7 @@ def _fit(c: _Checker, t: dict) -> dict:
             "simulate_at": c.str_(t, "simulate_at", w, "raw", ("raw", "kept")),
             "eps": eps, "drive_lowpass": lowpass,
             "reversal": c.str_(t, "reversal", w, "extreme", ("detection", "extreme")),
+            "force_offset": c.str_(t, "force_offset", w, "shared", ("shared", "per_test")),
             "n_predictive": c.num(t, "n_predictive", w, 200, integer=True, positive=True),
             "priors": _priors(c, t.get("priors", {}), "[fit.priors]"),
             "sampler": _sampler(c, t.get("sampler", {}), "[fit.sampler]")}

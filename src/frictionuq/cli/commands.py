@@ -30,7 +30,8 @@ def _cmd_fit(a):
                     seed=a.seed, priors=prior_options(a.prior), sampler=samp,
                     tests=tuple(a.test) if a.test else None,
                     kinds=tuple(a.kind) if a.kind else None, simulate_at=a.simulate_at,
-                    drive_lowpass=a.drive_lowpass, reversal=a.reversal)
+                    drive_lowpass=a.drive_lowpass, reversal=a.reversal,
+                    force_offset=a.force_offset)
     s = fit_campaign(a.campaign, a.out, by=a.by, config=cfg, log=lambda m: print(m, file=sys.stderr),
                      jobs=a.jobs)
     bad = [f["id"] for f in s["fits"] if not f["converged"]]
@@ -146,7 +147,8 @@ def _cmd_compare(a):
     from ..infer.priors import prior_options
     pri = prior_options(a.prior)
     cfgs = {m: FitConfig(model=m, likelihood=a.likelihood, seed=a.seed, sampler=samp, priors=pri,
-                         drive_lowpass=a.drive_lowpass, reversal=a.reversal)
+                         drive_lowpass=a.drive_lowpass, reversal=a.reversal,
+                         force_offset=a.force_offset)
             for m in models}
     r = compare_campaign(a.campaign, a.out, cfgs, kinds=a.kind, tests=a.test, seed=a.seed,
                          offset=a.offset, log=lambda m: print(m, file=sys.stderr), jobs=a.jobs)
@@ -164,7 +166,7 @@ def _cmd_discover(a):
     samp = _sampler_config(a)
     cfg = FitConfig(likelihood=a.likelihood, sampler=samp, priors=prior_options(a.prior), tests=tuple(a.test) if a.test else None,
                     kinds=tuple(a.kind) if a.kind else None, drive_lowpass=a.drive_lowpass,
-                    reversal=a.reversal)
+                    reversal=a.reversal, force_offset=a.force_offset)
     d = discover(a.campaign, a.out, cfg, seed=a.seed, refit=not a.no_refit,
                  extra_effects=tuple(a.extra_effect or ()), max_effects=a.max_effects,
                  jobs=a.jobs, log=lambda m: print(m, file=sys.stderr))

@@ -53,6 +53,11 @@ def _add_drive_lowpass(s) -> None:
                         "motion's extreme (default) or where the dead band eps detects it (the "
                         "spec's causal rule); the same with eps = 0; with the drive low-pass the "
                         "extreme removes the bias displacement noise puts into sigma0 (README)")
+    s.add_argument("--force-offset", choices=["shared", "per_test"], default="shared",
+                   help="the load-cell zero of a joint fit's tests: one force_offset for all "
+                        "(default), or each test's own, integrated out (per_test: for tests "
+                        "re-zeroed or drifted between them, which fit's between-tests check "
+                        "flags; iid and ar1 likelihoods only)")
 
 
 class _Parser(argparse.ArgumentParser):

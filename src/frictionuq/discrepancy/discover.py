@@ -81,7 +81,10 @@ def _model_forces(level_tests, cfg, effects, map_values: dict) -> list[tuple]:
     out = []
     for j, rec in enumerate(lp.records):
         g = lp.noise_gain(th, j)
-        out.append((rec, lp.simulate(th, rec)[0] + off, None if g is None else g[0]))
+        F = lp.simulate(th, rec)[0]
+        # per-test offsets (FitConfig.force_offset): each test's own zero, profiled at the MAP
+        F = F + (float(np.mean(rec.y - F)) if lp.space.per_test_offset else off)
+        out.append((rec, F, None if g is None else g[0]))
     return out
 
 

@@ -23,7 +23,8 @@ between tests beyond the noise, and a shared-offset fit's bands for a new test a
 about the spread of the m_j. False alarms: ALPHA when the noise model holds (checked by
 simulation in tests/test_infer_between.py); a noise model that understates the long-run
 variance (a misfit slower than the AR(1)'s correlation) raises it, so the spread of the m_j in
-newtons is reported beside the p-value. A single-test fit has nothing to compare (None).
+newtons is reported beside the p-value. A single-test fit, or one with per-test offsets
+(FitConfig.force_offset = "per_test"), has nothing to compare (None).
 """
 from __future__ import annotations
 
@@ -66,7 +67,7 @@ def check_fit(logpost, post, pred) -> dict | None:
     prediction (outputs.predictive) and the posterior medians of each record's noise parameters."""
     recs = logpost.records
     R = len(recs)
-    if R < 2:
+    if R < 2 or logpost.space.per_test_offset:     # each test has its own zero: nothing to check
         return None
     sig = np.median(np.asarray(post["sigma_noise"], float).reshape(-1, R), axis=0)
     phi = np.median(np.asarray(post["noise_phi"], float).reshape(-1, R), axis=0)

@@ -100,9 +100,10 @@ def _compare_fit(job, log) -> dict:
     ll, ch = heldout_loglik(lp_held, _draws(res_k), offset)
     elpd, neff, c_hat = log_mean_exp(ll[:, 0]), weights_n_eff(ll[:, 0]), None
     if np.isfinite(ch).any():
-        box = space.priors["force_offset"]
+        lo, hi = space.offset_box or (space.priors["force_offset"].lower,
+                                      space.priors["force_offset"].upper)
         c = float(np.nanmedian(ch[:, 0]))
-        c_hat = {"median_N": c, "inside_prior_box": bool(box.lower < c < box.upper)}
+        c_hat = {"median_N": c, "inside_prior_box": bool(lo < c < hi)}
     log(f"{name}: held-out {held.id}: elpd {elpd:.6g} nats (n_eff of weights {neff:.1f})")
     return {"held": held.id, "elpd": elpd, "n_eff": neff, "c_hat": c_hat, "fit": _fit_record(res_k),
             "seconds": time.perf_counter() - t0}

@@ -14,6 +14,10 @@ from .likelihood import NOISE_EFFECT_MIN_KEPT_HZ, SIMULATE_AT
 from .sampler import SamplerConfig
 
 LIKELIHOODS = ("iid", "ar1", "arma")
+#: the load-cell zero of a joint fit's tests: one `force_offset` for all ("shared"), or each
+#: test's own, integrated out under a uniform prior on the force_offset prior's box ("per_test":
+#: infer.likelihood; the tests were re-zeroed or drifted between them, infer.between)
+OFFSETS = ("shared", "per_test")
 
 
 def _names(value, what: str) -> tuple[str, ...] | None:
@@ -49,8 +53,9 @@ class FitConfig:
     "mu", "sd"[, "lower", "upper"]}, or the command line's text form {NAME: "uniform:LO:HI"} or
     a list of "NAME=SPEC" strings, SI units; samples_per_cycle: the kept rate's multiple of the
     dominant frequency (decimation); eps: the reversal dead band in m, or "auto" (the record's
-    estimator); tests / kinds: only these test ids / kinds; sampler: a SamplerConfig (or a dict
-    of its fields); seed: the sampler's seed. Checked at construction (InputError naming the
+    estimator); force_offset: "shared" (one load-cell zero for all tests) or "per_test" (each
+    test's own zero, integrated out); tests / kinds: only these test ids / kinds; sampler: a
+    SamplerConfig (or a dict of its fields); seed: the sampler's seed. Checked at construction (InputError naming the
     field), before any folder is made."""
     model: str = "three_stage"
     effects: tuple[str, ...] = ()
@@ -68,6 +73,7 @@ class FitConfig:
     # model-choices.md, "Reversals at the extreme") or "detection", the spec's causal rule; the
     # same at eps 0
     reversal: str = "extreme"
+    force_offset: str = "shared"                   # OFFSETS
     kinds: tuple[str, ...] | None = None           # only tests of these kinds
     tests: tuple[str, ...] | None = None           # only these test ids
     sampler: SamplerConfig = field(default_factory=SamplerConfig)
@@ -108,6 +114,16 @@ class FitConfig:
         if self.reversal not in REVERSAL_RULES:
             raise InputError(f"fit config: reversal must be one of {', '.join(REVERSAL_RULES)}, "
                              f"got {self.reversal!r}")
+        if self.force_offset not in OFFSETS:
+            raise InputError(f"fit config: force_offset must be one of {', '.join(OFFSETS)}, got "
+                             f"{self.force_offset!r}")
+        if self.force_offset == "per_test":
+            if "force_offset" in self.priors:
+                raise InputError("fit config: force_offset 'per_test' integrates each test's "
+                                 "zero out; force_offset then takes no prior or value")
+            if self.likelihood == "arma" or set(self.effects) & P.NOISE_EFFECTS:
+                raise InputError("fit config: force_offset 'per_test' works with the iid and ar1 "
+                                 "likelihoods and no noise effect (chatter)")
         if self.simulate_at not in SIMULATE_AT:
             raise InputError(f"fit config: simulate_at must be one of {', '.join(SIMULATE_AT)}, "
                              f"got {self.simulate_at!r}")

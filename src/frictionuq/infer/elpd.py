@@ -119,14 +119,16 @@ def heldout_loglik(logpost: LogPosterior, theta: np.ndarray, offset: str = "marg
     ch = np.full((S, R), np.nan)
     if offset not in OFFSET_MODES:
         raise InputError(f"held-out offset must be one of {OFFSET_MODES}, got {offset!r}")
-    marginal = offset == "marginal" and "force_offset" in sp.priors
+    # a fit with per-test offsets has no shared one to carry over: the held-out test's own
+    # zero is integrated out whatever `offset` says
+    marginal = sp.per_test_offset or (offset == "marginal" and "force_offset" in sp.priors)
     for i in range(0, S, BATCH):
         th = theta[i:i + BATCH]
         if not marginal:
             ll[i:i + BATCH] = logpost.loglik_records(th)
             continue
-        lo, hi = offset_box if offset_box is not None else (sp.priors["force_offset"].lower,
-                                                            sp.priors["force_offset"].upper)
+        lo, hi = offset_box or sp.offset_box or (sp.priors["force_offset"].lower,
+                                                 sp.priors["force_offset"].upper)
         for j, rec in enumerate(logpost.records):
             e = rec.y[None, :] - logpost.simulate(th, rec)
             ll[i:i + BATCH, j], ch[i:i + BATCH, j] = log_marginal_offset(

@@ -131,7 +131,10 @@ def build_space(spec: FitSpec, scales) -> Space:
         for n in ("k2", "d2", "k3", "d3", "w"):
             pri.pop(n, None)
             fixed.pop(n, None)
-    return Space(c.model, tuple(c.effects), c.likelihood, pri, fixed)
+    box = None
+    if c.force_offset == "per_test":      # each test's zero integrated out on the default prior's box
+        box = pri.pop("force_offset").box()
+    return Space(c.model, tuple(c.effects), c.likelihood, pri, fixed, offset_box=box)
 
 
 def prepare(spec: FitSpec):

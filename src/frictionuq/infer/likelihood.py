@@ -39,6 +39,7 @@ import numpy as np
 from .. import model as M
 from ..noise import chatter_gain, default_eps, since_reversal
 from . import drivefilter, noisemodel
+from .offsetnoise import log_marginal_offset
 from .decimate import decimate, decimator
 from .space import Space
 
@@ -212,6 +213,9 @@ class LogPosterior:
         self.records = records
         self.parallel = parallel
         self.noise = space.noise_config()
+        # per-test offsets (Space.offset_box): each record's blob also carries its offset, the
+        # conditional optimum at the most probable phi (outputs draws the offsets from it)
+        self.n_stats = N_STATS + (1 if space.per_test_offset else 0)
         self.n_evals = 0
         self._since: dict[int, np.ndarray] = {}
 
@@ -250,8 +254,11 @@ class LogPosterior:
         theta = np.atleast_2d(theta)
         off = self.space.offset(theta)
         out = np.empty((theta.shape[0], len(self.records)))
-        stats = np.empty((theta.shape[0], len(self.records), N_STATS))
+        stats = np.empty((theta.shape[0], len(self.records), self.n_stats))
         for j, rec in enumerate(self.records):
+            if self.space.per_test_offset:
+                out[:, j], stats[:, j, :] = self._loglik_own_offset(theta, rec)
+                continue
             e = self.residuals(theta, rec, off)
             g = self.noise_gain(theta, j)
             if g is not None:      # e = g u, u the stationary noise: p(e) = p(u) / prod g
@@ -265,9 +272,26 @@ class LogPosterior:
         self.n_evals += theta.shape[0]
         return out, stats
 
+    def _loglik_own_offset(self, theta, rec: FitRecord):
+        """(W,) log-likelihood of one record with its own offset integrated out under a uniform
+        prior on the space's offset box, together with the noise (offsetnoise, the held-out
+        test's marginal of compare.py), and (W, n_stats) the sufficient statistics of y - F - c
+        with c, the offset's conditional optimum, last."""
+        e = rec.y[None, :] - self.simulate(theta, rec)
+        n = self.noise
+        ll, c = log_marginal_offset(e, n["kind"], n["sigma_bounds"], n["sigma_fixed"],
+                                    n["phi_fixed"], offset_box=self.space.offset_box)
+        st = noisemodel.suff_stats(e - c[:, None])
+        return ll, np.column_stack(st + (c,))
+
     def residuals(self, theta, rec: FitRecord, off=None) -> np.ndarray:
-        """Residuals y - F - offset (W, N) of one record."""
+        """Residuals y - F - offset (W, N) of one record; with per-test offsets (Space.offset_box)
+        minus each row's own mean (the offset profiled out, as least squares and the residual
+        diagnostics need it)."""
         theta = np.atleast_2d(theta)
+        if self.space.per_test_offset:
+            e = rec.y[None, :] - self.simulate(theta, rec)
+            return e - e.mean(axis=1, keepdims=True)
         off = self.space.offset(theta) if off is None else off
         return rec.y[None, :] - self.simulate(theta, rec) - off[:, None]
 
@@ -277,7 +301,7 @@ class LogPosterior:
         theta = np.atleast_2d(theta)
         lp = self.space.log_prior(theta)
         R = len(self.records)
-        res = np.full((theta.shape[0], 1 + R * (1 + N_STATS * stats)), -np.inf)
+        res = np.full((theta.shape[0], 1 + R * (1 + self.n_stats * stats)), -np.inf)
         ok = np.isfinite(lp)
         if ok.any():
             ll, st = self.loglik_and_stats(theta[ok])
@@ -306,8 +330,8 @@ class UnboundedPosterior:
 
     def __call__(self, u) -> np.ndarray:
         u = np.atleast_2d(np.asarray(u, dtype=float))
-        res = np.full((u.shape[0], 1 + len(self.logpost.records) * (1 + N_STATS * self.stats)),
-                      -np.inf)
+        R, ns = len(self.logpost.records), self.logpost.n_stats
+        res = np.full((u.shape[0], 1 + R * (1 + ns * self.stats)), -np.inf)
         ok = np.all(np.isfinite(u), axis=1)
         if ok.any():
             r = self.logpost(self.space.from_u(u[ok]), stats=self.stats)

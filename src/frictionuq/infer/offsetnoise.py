@@ -45,6 +45,45 @@ def log_interval(lo, hi, logcdf) -> np.ndarray:
     return np.where(np.isfinite(lb), out, -np.inf)
 
 
+#: standardised distance of the offset's conditional optimum from both ends of its box beyond
+#: which the box holds all of its conditional mass but less than exp(-400) of it (t tails with
+#: the records' thousands of degrees of freedom are normal there): the term is 0 to double
+#: precision and its t CDFs, the costliest part of a per-test-offset likelihood, are skipped
+_INSIDE_T = 40.0
+
+
+def _box_term(t_lo, t_hi, logcdf) -> np.ndarray:
+    """log P(t_lo < T < t_hi), elementwise; exactly 0 where both ends lie beyond _INSIDE_T."""
+    out = np.zeros(np.broadcast(t_lo, t_hi).shape)
+    t_lo, t_hi = np.broadcast_arrays(t_lo, t_hi)
+    near = (t_lo > -_INSIDE_T) | (t_hi < _INSIDE_T)
+    if np.any(near):
+        out[near] = log_interval(t_lo[near], t_hi[near], logcdf)
+    return out
+
+
+#: phi grid points more than this many nats below a row's best (before the box term) add less
+#: than exp(-50) of its integral: their box terms are not computed unless the box cuts the best
+#: points by more than _BOX_CUT nats (an offset at or beyond the box), when all are
+_FAR_BELOW, _BOX_CUT = 50.0, 10.0
+
+
+def _box_terms(lp, t_lo, t_hi, logcdf) -> np.ndarray:
+    """(W, P) the box factors log P(t_lo < T < t_hi) over the phi grid, computed where they can
+    change the row's integral (_FAR_BELOW, _INSIDE_T): 0 elsewhere, to double precision of
+    the logsumexp. Without the skips a per-test-offset likelihood spent 90 % of its time in the
+    t CDFs (32 walkers, three 1,500-sample records: 32.6 against 3.1 ms per call)."""
+    top = np.max(lp, axis=1, keepdims=True)
+    use = lp > top - _FAR_BELOW
+    out = np.zeros(lp.shape)
+    out[use] = _box_term(t_lo[use], t_hi[use], logcdf)
+    cut = np.max(np.where(use, lp + out, -np.inf), axis=1) < top[:, 0] - _BOX_CUT
+    if np.any(cut):                        # the box matters at the top: every point counts
+        rows = np.flatnonzero(cut)
+        out[rows] = _box_term(t_lo[rows], t_hi[rows], logcdf)
+    return out
+
+
 def log_marginal_offset(e: np.ndarray, kind: str, sigma_bounds: tuple[float, float],
                         sigma_fixed: float | None = None, phi_fixed: float | None = None,
                         offset_box: tuple[float, float] = (-np.inf, np.inf),
@@ -88,15 +127,17 @@ def log_marginal_offset(e: np.ndarray, kind: str, sigma_bounds: tuple[float, flo
         M = N - 1
         lp = (-0.5 * M * math.log(math.pi) + gammaln(0.5 * M) - math.log(2 * math.log(b / a))
               + half - 0.5 * M * np.log(Qmin))
-        if np.isfinite(lo) or np.isfinite(hi):     # Student-t in c with N - 1 dof
-            k = np.sqrt(A * M / Qmin)
-            lp = lp + log_interval((lo - c_opt) * k, (hi - c_opt) * k, lambda t: log_cdf_t(t, M))
+        k = np.sqrt(A * M / Qmin)                   # Student-t in c with N - 1 dof
+
+        def logcdf(t):
+            return log_cdf_t(t, M)
     else:
         s2 = sigma_fixed**2 * (1 - ph**2)
         lp = -0.5 * (N - 1) * np.log(2 * math.pi * s2) + half - Qmin / (2 * s2)
-        if np.isfinite(lo) or np.isfinite(hi):     # Gaussian in c
-            k = np.sqrt(A / s2)
-            lp = lp + log_interval((lo - c_opt) * k, (hi - c_opt) * k, log_ndtr)
+        k = np.sqrt(A / s2) * np.ones_like(c_opt)   # Gaussian in c
+        logcdf = log_ndtr
     lp = lp + logw[None, :]
+    if np.isfinite(lo) or np.isfinite(hi):
+        lp = lp + _box_terms(lp, (lo - c_opt) * k, (hi - c_opt) * k, logcdf)
     best = np.argmax(lp, axis=1)
     return logsumexp(lp, axis=1), c_opt[np.arange(W), best]

@@ -31,15 +31,32 @@ def posterior_draws(logpost, res, rng) -> dict:
     phi = np.empty_like(sig)
     # the residuals' sufficient statistics at every draw, stored by the sampler (D, W, R, S)
     stats = np.transpose(res.noise_stats, (1, 0, 2, 3)).reshape(W * D, len(logpost.records), -1)
+    ns = len(noisemodel.STATS)
     for j, rec in enumerate(logpost.records):
-        s_g, phi[:, j] = noisemodel.draw_noise_stats(stats[:, j, :].T, rec.n, rng=rng,
+        s_g, phi[:, j] = noisemodel.draw_noise_stats(stats[:, j, :ns].T, rec.n, rng=rng,
                                                      **_draw_args(logpost))
         sig[:, j] = noisemodel.marginal_sd(s_g, phi[:, j], rec.noise_theta)
     out["sigma_noise"] = sig.reshape(W, D, -1)
     out["noise_phi"] = phi.reshape(W, D, -1)
+    if sp.per_test_offset:
+        out["force_offset"] = test_offsets(logpost, stats[:, :, ns], sig, phi, rng).reshape(W, D, -1)
     out["log_prob"] = res.log_prob.T
     out["loglik_records"] = np.transpose(res.blobs, (1, 0, 2))
     return out
+
+
+def test_offsets(logpost, c_opt, sigma, phi, rng) -> np.ndarray:
+    """(draws, records) each test's own force offset (per-test offsets): drawn from its
+    conditional posterior given the model draw and the record's noise draw, Gaussian about the
+    stored optimum c_opt with sd s / sqrt(A), s the innovation sd and A = (1 - phi^2) + (N - 1)
+    (1 - phi)^2 (offsetnoise; sigma given, the Student-t there is this Gaussian), truncated to
+    the prior box by clipping (the box is 3 prior sds wide each side: a test whose zero lies
+    beyond it is not fitted by this model either)."""
+    n = np.array([r.n for r in logpost.records], float)[None, :]
+    A = (1 - phi**2) + (n - 1) * (1 - phi) ** 2
+    sd = sigma * np.sqrt(1 - phi**2) / np.sqrt(A)
+    lo, hi = logpost.space.offset_box
+    return np.clip(c_opt + sd * rng.standard_normal(c_opt.shape), lo, hi)
 
 
 def _draw_args(logpost) -> dict:
@@ -63,12 +80,14 @@ def predictive(logpost, post, n_draws: int, rng) -> dict:
     S = min(n_draws, th.shape[0])
     idx = rng.choice(th.shape[0], size=S, replace=False)
     sel = th[idx]
-    off = logpost.space.offset(sel)
+    R = len(logpost.records)
+    off = (post["force_offset"].reshape(-1, R)[idx] if logpost.space.per_test_offset
+           else np.repeat(logpost.space.offset(sel)[:, None], R, axis=1))
     sig = post["sigma_noise"].reshape(-1, len(logpost.records))[idx]
     phi = post["noise_phi"].reshape(-1, len(logpost.records))[idx]
     model, rep = [], []
     for j, rec in enumerate(logpost.records):
-        F = logpost.simulate(sel, rec) + off[:, None]
+        F = logpost.simulate(sel, rec) + off[:, j, None]
         model.append(F)
         noise = ar1_noise(sig[:, j], phi[:, j], rec.n, rng, rec.noise_theta)
         g = logpost.noise_gain(sel, j)      # the `chatter` noise effect, if the fit has it
@@ -84,6 +103,8 @@ def datatree(logpost, post, pred, attrs: dict):
     posterior = dict(post["values"])
     posterior["sigma_noise"] = post["sigma_noise"]
     posterior["noise_phi"] = post["noise_phi"]
+    if "force_offset" in post:              # per-test offsets: one per test
+        posterior["force_offset"] = post["force_offset"]
     observed = {"force": np.concatenate([r.y for r in recs])}
     const = {"time": np.concatenate([r.t for r in recs]),
              "displacement": np.concatenate([r.x for r in recs]),
@@ -100,6 +121,7 @@ def datatree(logpost, post, pred, attrs: dict):
         log_likelihood={"force_per_test": post["loglik_records"]},
         observed_data=observed, constant_data=const, posterior_predictive=pp,
         dims={"sigma_noise": ["test"], "noise_phi": ["test"], "force_per_test": ["test"],
+              **({"force_offset": ["test"]} if "force_offset" in post else {}),
               "force": ["obs"], "force_model": ["obs"], "time": ["obs"], "displacement": ["obs"],
               "test_of_obs": ["obs"]},
         coords={"test": [r.id for r in recs], "obs": np.arange(observed["force"].size)},
@@ -183,7 +205,8 @@ def summary_entry(spec, logpost, res, dt, post, pred) -> dict:
         if np.all(vals == vals[:1]):
             fixed_noise.update({f"{per_test}[{r.id}]": float(vals[0, j])
                                 for j, r in enumerate(logpost.records)})
-    names = list(sp.names) + ["sigma_noise"] + ([] if fixed_noise else ["noise_phi"])
+    names = list(sp.names) + ["sigma_noise"] + ([] if fixed_noise else ["noise_phi"]) \
+        + (["force_offset"] if sp.per_test_offset else [])
     tab = azadapter.summary(dt, var_names=names)
     params = {}
     for name, row in tab.iterrows():

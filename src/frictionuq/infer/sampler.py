@@ -86,7 +86,7 @@ import numpy as np
 from ..errors import InputError
 from ..interrupts import Interrupts, interrupts
 from .convergence import autocorr_time, check, thinning
-from .likelihood import N_STATS, LogPosterior, UnboundedPosterior
+from .likelihood import LogPosterior, UnboundedPosterior
 from .localfit import gauss_newton_cov
 from .optimize import find_map
 from .proposal import IndependenceMove, Proposal, proposal_change
@@ -417,7 +417,7 @@ def _result(sampler, cfg, sp, n_done, converged, theta_map, lp_map, logpost, t0,
     R = len(logpost.records)
     return SampleResult(
         chain=theta, log_prob=lp_theta, blobs=blobs[..., :R],
-        noise_stats=blobs[..., R:].reshape(blobs.shape[:2] + (R, N_STATS)),
+        noise_stats=blobs[..., R:].reshape(blobs.shape[:2] + (R, logpost.n_stats)),
         tau=np.asarray(tau, float), n_steps=n_done, burn=burn, thin=thin,
         acceptance=float(np.mean(sampler.acceptance_fraction)), converged_tau=converged,
         theta_map=theta_map, log_prob_map=lp_map, n_evals=int(logpost.n_evals),

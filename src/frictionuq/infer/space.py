@@ -31,6 +31,9 @@ class Space:
     likelihood: str
     priors: dict[str, Prior]              # free parameters (noise ones are integrated out)
     fixed: dict[str, float] = field(default_factory=dict)
+    # (lower, upper) N: each record's own force offset, integrated out under a uniform prior on
+    # this box (FitConfig.force_offset = "per_test"; force_offset is then not a sampling dimension)
+    offset_box: tuple[float, float] | None = None
 
     def __post_init__(self):
         if self.likelihood not in LIKELIHOODS:
@@ -39,6 +42,13 @@ class Space:
         self.priors = {n: p for n, p in self.priors.items() if n not in NOISE}
         if "sigma_noise" not in self.noise_priors and "sigma_noise" not in self.fixed:
             raise ValueError("sigma_noise needs a prior (bounds) or a fixed value")
+        if self.offset_box is not None:
+            if "force_offset" in self.priors or "force_offset" in self.fixed:
+                raise ValueError("a per-test offset box and a shared force_offset exclude each other")
+            lo, hi = map(float, self.offset_box)
+            if not lo < hi:
+                raise ValueError(f"offset box needs lower < upper, got {self.offset_box}")
+            self.offset_box = (lo, hi)
         self.names = list(self.priors)
         self.ndim = len(self.names)
         self.log = np.array([self.priors[n].log for n in self.names])
@@ -111,8 +121,12 @@ class Space:
             M[:, j] = vals[:, i]
         return M
 
+    @property
+    def per_test_offset(self) -> bool:
+        return self.offset_box is not None
+
     def offset(self, theta) -> np.ndarray:
-        """force_offset of each row (W,)."""
+        """force_offset of each row (W,); 0 with per-test offsets (the likelihood's)."""
         vals = np.atleast_2d(self.to_values(theta))
         if "force_offset" in self.priors:
             return vals[:, self.names.index("force_offset")]
@@ -186,4 +200,6 @@ class Space:
                 "free": self.names, "priors": {n: p.to_json() for n, p in self.priors.items()},
                 "noise_priors": {n: p.to_json() for n, p in self.noise_priors.items()},
                 "noise": "per record, integrated out (frictionuq.infer.noisemodel)",
-                "fixed": dict(self.fixed)}
+                "fixed": dict(self.fixed),
+                **({"offset": {"per_test": True, "prior_box_N": list(self.offset_box)}}
+                   if self.offset_box is not None else {})}
