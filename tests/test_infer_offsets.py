@@ -73,7 +73,8 @@ def test_skipping_negligible_box_factors_changes_nothing():
 @pytest.mark.parametrize("kw, match", [
     ({"likelihood": "arma"}, "iid and ar1"),
     ({"effects": ("chatter",)}, "no noise effect"),
-    ({"priors": {"force_offset": 0.0}}, "takes no prior"),
+    ({"priors": {"force_offset": 0.0}}, "can only be force_offset=uniform"),
+    ({"priors": {"force_offset": "normal:0:100"}}, "can only be force_offset=uniform"),
 ])
 def test_settings_a_per_test_offset_cannot_serve_are_refused(kw, match):
     with pytest.raises(InputError, match=match):
@@ -106,3 +107,43 @@ def test_a_fit_with_per_test_offsets_finds_each_zero_and_predicts_with_them(tmp_
     d = choose_draws(tmp_path, 267.0, 3000, np.random.default_rng(0), summary={"fits": [e]})
     near = np.mean(d.offset > 300.0)
     assert 0.25 < near < 0.42, near
+
+
+def test_the_box_is_the_friction_scale_or_the_users():
+    """Each test's zero lives in +-F (the records' friction scale), not in the shared offset's
+    +-3 sd (from the pooled plateau asymmetry, where opposite zeros cancel); a uniform prior
+    given for force_offset sets the box instead."""
+    tests, _, _ = _records((0.0, 0.0, 600.0))
+    from frictionuq.infer.priors import record_scales
+    F = record_scales([t.record for t in tests]).f_scale
+    space, _, _, _ = _prepared((0.0, 0.0, 600.0), "per_test")
+    assert space.offset_box == pytest.approx((-F, F))
+    spec = FitSpec("s", tests, 267.0, FitConfig(samples_per_cycle=500, drive_lowpass="off",
+                                                force_offset="per_test",
+                                                priors={"force_offset": "uniform:-9000:9000"}))
+    assert prepare(spec)[2].offset_box == (-9000.0, 9000.0)
+
+
+def test_zeros_pressing_on_the_box_are_named_and_compare_scores_each_tests_zero():
+    """outputs.per_test_offsets names a test whose zero's 95 % interval reaches the box's edge;
+    compare's RMSE adds each test's own zero (a 600 N zero left out would double the third
+    test's RMSE)."""
+    from types import SimpleNamespace as NS
+    from frictionuq.infer.compare import _rmse
+    from frictionuq.infer.outputs import per_test_offsets
+    space, lp, th, sd = _prepared((0.0, 0.0, 600.0), "per_test")
+    lo, hi = space.offset_box
+    rng = np.random.default_rng(0)
+    c = np.stack([rng.normal(0, 50, 400), rng.normal(0, 50, 400), rng.uniform(hi - 100, hi, 400)], axis=1)
+    pt = per_test_offsets(lp, {"force_offset": c.reshape(4, 100, 3)})
+    assert pt["at_box_edge"] == ["sine-2"] and pt["box_N"] == [lo, hi]
+    total, per = _rmse(lp, NS(chain=np.repeat(th[None, :, :], 4, axis=0)), 4, rng)
+    assert per["sine-2"] < 1.1 * sd and abs(per["sine-2"] - per["sine-0"]) < 0.1 * sd, (per, sd)
+
+
+def test_discover_refuses_a_noise_effect_with_per_test_offsets(tmp_path):
+    from frictionuq.discrepancy.discover import discover
+    with pytest.raises(InputError, match="noise effect chatter"):
+        discover(tmp_path / "none", tmp_path / "out", FitConfig(force_offset="per_test"),
+                 extra_effects=("chatter",))
+    assert not (tmp_path / "out").exists()

@@ -388,7 +388,7 @@ def load_workflow(path) -> Workflow:
                   "family": c.str_(lt, "family", "[law]", "auto", FAMILIES)}
     cfg["predict"] = _predict(c, tables["predict"], base)
     cfg["compare"] = _compare(c, tables["compare"])
-    from .params import BEYOND_SPEC
+    from .params import BEYOND_SPEC, NOISE_EFFECTS
     dt = tables["discrepancy"]
     c.unknown(dt, SECTIONS["discrepancy"], "discrepancy")
     cfg["discrepancy"] = {"enabled": c.bool_(dt, "enabled", "[discrepancy]", False),
@@ -404,6 +404,14 @@ def load_workflow(path) -> Workflow:
             if cfg[sec]["enabled"]:
                 c.fail("[fit].likelihood", f"'arma' cannot be used with [{sec}] enabled (its "
                        "held-out scoring supports ar1 and iid); use ar1 or disable the stage")
+    if cfg["fit"]["force_offset"] == "per_test":   # the closed form covers iid and ar1 noise only
+        if cfg["fit"]["likelihood"] == "arma":
+            c.fail("[fit].force_offset", "'per_test' works with the ar1 and iid likelihoods, not "
+                   "'arma'")
+        noise = set(cfg["discrepancy"]["extra_effects"] or ()) & NOISE_EFFECTS
+        if cfg["discrepancy"]["enabled"] and noise:
+            c.fail("[fit].force_offset", f"'per_test' cannot be screened with the noise effect "
+                   f"{sorted(noise)[0]} of [discrepancy].extra_effects; drop it or use 'shared'")
     rt = tables["report"]
     c.unknown(rt, SECTIONS["report"], "report")
     cfg["report"] = {"enabled": c.bool_(rt, "enabled", "[report]", True),

@@ -246,7 +246,12 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
     if bad:
         raise InputError(f"discover: extra effect {bad[0]!r} is not an effect beyond the spec's "
                          f"library; known: {', '.join(sorted(P.BEYOND_SPEC))}")
-    if (set(effects or ()) | set(extra_effects)) & P.NOISE_EFFECTS:
+    noise = (set(effects or ()) | set(extra_effects)) & P.NOISE_EFFECTS
+    if noise and cfg.force_offset == "per_test":
+        raise InputError(f"discover: per-test force offsets cannot be screened with the noise "
+                         f"effect {sorted(noise)[0]} (its gain turns a test's zero into a varying "
+                         "signal); drop it from the candidates or use --force-offset shared")
+    if noise:
         # every model of the comparison on the same records, kept at a rate that holds chatter
         cfg = replace(cfg, min_kept_hz=max(cfg.min_kept_hz or 0.0, NOISE_EFFECT_MIN_KEPT_HZ))
     t0 = time.perf_counter()

@@ -12,7 +12,8 @@ cancel in the difference), its Jacobian stepped both ways with the smaller slope
 parameter (ignore_jumps: a step across a jump of the sampled model, next to a drop of the
 log-posterior in d3, moved the evidence by 13 nats within 3e-7 of d3's box). The noise sd and
 AR(1) phi of each record are integrated out in the log-posterior itself (infer.noisemodel); the
-force offset is the fit's shared parameter.
+force offset is the fit's shared parameter, or, with per-test offsets (FitConfig.force_offset),
+each test's own, integrated out there too.
 
 Why the ratio of evidences and not an integral over the training fit's Gaussian approximation
 (the two forms used before, measured 2026-11-25 on short hidden-effect campaigns): two short

@@ -118,9 +118,12 @@ class FitConfig:
             raise InputError(f"fit config: force_offset must be one of {', '.join(OFFSETS)}, got "
                              f"{self.force_offset!r}")
         if self.force_offset == "per_test":
-            if "force_offset" in self.priors:
+            box = self.priors.get("force_offset")
+            if box is not None and not (isinstance(box, dict) and box.get("dist") == "uniform"):
                 raise InputError("fit config: force_offset 'per_test' integrates each test's "
-                                 "zero out; force_offset then takes no prior or value")
+                                 "zero out under a uniform prior; its prior can only be "
+                                 "force_offset=uniform:LOWER:UPPER (N), not a value or "
+                                 f"another distribution (got {box!r})")
             if self.likelihood == "arma" or set(self.effects) & P.NOISE_EFFECTS:
                 raise InputError("fit config: force_offset 'per_test' works with the iid and ar1 "
                                  "likelihoods and no noise effect (chatter)")

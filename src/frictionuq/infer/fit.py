@@ -132,9 +132,22 @@ def build_space(spec: FitSpec, scales) -> Space:
             pri.pop(n, None)
             fixed.pop(n, None)
     box = None
-    if c.force_offset == "per_test":      # each test's zero integrated out on the default prior's box
-        box = pri.pop("force_offset").box()
+    if c.force_offset == "per_test":      # each test's zero integrated out (per_test_offset_box)
+        pri.pop("force_offset")
+        box = per_test_offset_box(scales, (c.priors or {}).get("force_offset"))
     return Space(c.model, tuple(c.effects), c.likelihood, pri, fixed, offset_box=box)
+
+
+def per_test_offset_box(scales, override=None) -> tuple[float, float]:
+    """The uniform prior box (N) of each test's own zero under per-test offsets: +-F, the records'
+    friction-force scale (a zero as large as the friction itself is no zero), or a user's
+    {"dist": "uniform", "lower", "upper"} (FitConfig checks its form). Not the shared offset's
+    +-3 sd box: its sd comes from the level's pooled plateau asymmetry, in which zeros of
+    opposite sign cancel (arts-d1 22 lb: +-381 N, where one test's zero lies near -440 N). The
+    width enters each record's likelihood only as the constant -log(width)."""
+    if override is not None:
+        return float(override["lower"]), float(override["upper"])
+    return -float(scales.f_scale), float(scales.f_scale)
 
 
 def prepare(spec: FitSpec):
@@ -220,6 +233,11 @@ def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True
     atomic.write_json(fdir / "fit.json", jsonable(record))
     log(f"fit {spec.id}: {'converged' if entry['converged'] else 'NOT converged'} "
         f"after {res.n_steps} steps ({entry['seconds']:.0f} s), rmse {entry['rmse']:.4g} N")
+    edge = (entry.get("per_test_offsets") or {}).get("at_box_edge")
+    if edge:
+        lo, hi = entry["per_test_offsets"]["box_N"]
+        log(f"fit {spec.id}: the zero of test(s) {', '.join(edge)} presses against its prior box "
+            f"[{lo:.0f}, {hi:.0f}] N: widen it with --prior force_offset=uniform:LOWER:UPPER")
     bt = entry["between_tests"]
     if bt and bt["significant"]:
         log(f"fit {spec.id}: the tests' force zeros differ beyond the noise (per-test mean "

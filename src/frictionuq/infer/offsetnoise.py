@@ -46,9 +46,10 @@ def log_interval(lo, hi, logcdf) -> np.ndarray:
 
 
 #: standardised distance of the offset's conditional optimum from both ends of its box beyond
-#: which the box holds all of its conditional mass but less than exp(-400) of it (t tails with
-#: the records' thousands of degrees of freedom are normal there): the term is 0 to double
-#: precision and its t CDFs, the costliest part of a per-test-offset likelihood, are skipped
+#: which the box holds all of its conditional mass but a tail below exp(-46) (Student-t with 20
+#: degrees of freedom; exp(-145) with 100, about exp(-800) with the records' thousands): the
+#: term is then 0 within that, and its t CDFs, the costliest part of a per-test-offset
+#: likelihood, are skipped
 _INSIDE_T = 40.0
 
 

@@ -39,24 +39,43 @@ def posterior_draws(logpost, res, rng) -> dict:
     out["sigma_noise"] = sig.reshape(W, D, -1)
     out["noise_phi"] = phi.reshape(W, D, -1)
     if sp.per_test_offset:
-        out["force_offset"] = test_offsets(logpost, stats[:, :, ns], sig, phi, rng).reshape(W, D, -1)
+        offs = draw_test_offsets(logpost, stats[:, :, ns], sig, phi, rng)
+        out["force_offset"] = offs.reshape(W, D, -1)
     out["log_prob"] = res.log_prob.T
     out["loglik_records"] = np.transpose(res.blobs, (1, 0, 2))
     return out
 
 
-def test_offsets(logpost, c_opt, sigma, phi, rng) -> np.ndarray:
-    """(draws, records) each test's own force offset (per-test offsets): drawn from its
-    conditional posterior given the model draw and the record's noise draw, Gaussian about the
-    stored optimum c_opt with sd s / sqrt(A), s the innovation sd and A = (1 - phi^2) + (N - 1)
+#: a test's zero whose 95 % interval reaches this fraction of the box's width from an edge
+EDGE = 0.01
+
+
+def per_test_offsets(logpost, post) -> dict:
+    """The per-test offsets' prior box and the tests whose zero presses against it (the box, not
+    the data, then bounds it: widen it with force_offset=uniform:LOWER:UPPER)."""
+    lo, hi = logpost.space.offset_box
+    c = np.asarray(post["force_offset"], float).reshape(-1, len(logpost.records))
+    q = np.quantile(c, [0.025, 0.975], axis=0)
+    slab = EDGE * (hi - lo)
+    edge = [r.id for j, r in enumerate(logpost.records) if q[0, j] < lo + slab or q[1, j] > hi - slab]
+    return {"box_N": [lo, hi], "at_box_edge": edge,
+            "rule": f"a test's 95 % interval within {EDGE:.0%} of the box's width from an edge"}
+
+
+def draw_test_offsets(logpost, c_opt, sigma, phi, rng) -> np.ndarray:
+    """(draws, records) each test's own force offset (per-test offsets), given the model draw
+    and the record's noise draw: Gaussian about the stored conditional optimum c_opt (at the
+    most probable phi of the draw's model, an approximation: across the phi posterior it moves
+    by well under its sd) with sd s / sqrt(A), s the innovation sd and A = (1 - phi^2) + (N - 1)
     (1 - phi)^2 (offsetnoise; sigma given, the Student-t there is this Gaussian), truncated to
-    the prior box by clipping (the box is 3 prior sds wide each side: a test whose zero lies
-    beyond it is not fitted by this model either)."""
+    the prior box."""
+    from scipy.stats import truncnorm
     n = np.array([r.n for r in logpost.records], float)[None, :]
     A = (1 - phi**2) + (n - 1) * (1 - phi) ** 2
     sd = sigma * np.sqrt(1 - phi**2) / np.sqrt(A)
     lo, hi = logpost.space.offset_box
-    return np.clip(c_opt + sd * rng.standard_normal(c_opt.shape), lo, hi)
+    c = np.clip(c_opt, lo, hi)
+    return truncnorm.rvs((lo - c) / sd, (hi - c) / sd, loc=c, scale=sd, random_state=rng)
 
 
 def _draw_args(logpost) -> dict:
@@ -228,6 +247,7 @@ def summary_entry(spec, logpost, res, dt, post, pred) -> dict:
                                 "chain (R-hat, ESS, > 50 tau) before the step cap",
             "rmse": total, "rmse_per_test": per, "identifiability": identifiability(sp, post),
             "between_tests": between.check_fit(logpost, post, pred),
+            **({"per_test_offsets": per_test_offsets(logpost, post)} if sp.per_test_offset else {}),
             "sampler_steps": res.n_steps, "tau_max": float(np.max(res.tau)),
             "model_evaluations": res.n_evals,
             **({"noise_theta": {r.id: r.noise_theta for r in logpost.records}}

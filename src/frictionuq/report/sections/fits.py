@@ -203,7 +203,21 @@ def identifiability(f: dict) -> list[dict]:
     items.append("at a prior bound: " + (", ".join(f"{n} ({side})" for n, side in bounds.items())
                                          if bounds else "none"))
     out = [B.html(bullet_list(items)), B.note(f"Rule: {idf.get('rule', '')}")]
-    return out + _between_tests(f.get("between_tests"))
+    return out + _between_tests(f.get("between_tests")) + _per_test_offsets(f.get("per_test_offsets"))
+
+
+def _per_test_offsets(pt) -> list[dict]:
+    """Per-test offsets (FitConfig.force_offset): their prior box and any zero pressing on it."""
+    if not isinstance(pt, dict):
+        return []
+    lo, hi = (pt.get("box_N") or [None, None])[:2]
+    edge = pt.get("at_box_edge") or []
+    text = (f"Each test has its own force zero, integrated out under a uniform prior on "
+            f"[{num(lo, 4)}, {num(hi, 4)}] N (force_offset[TEST] in the table above); "
+            + (f"pressing against that box: {', '.join(edge)} (the box, not the data, bounds "
+               "them: widen it with --prior force_offset=uniform:LOWER:UPPER)" if edge
+               else "none presses against it") + ".")
+    return [B.html(bullet_list([text]))]
 
 
 def _between_tests(bt) -> list[dict]:
