@@ -106,3 +106,12 @@ def test_the_report_says_whether_the_zeros_agree():
     assert "differ beyond the noise" in html and "a 1500 N" in html
     ok = between.offset_check(["a", "b"], [10.0, -10.0], [3000, 3000], [2600.0] * 2, [0.93] * 2)
     assert "agree within the noise" in str(_between_tests(ok))
+
+
+def test_the_report_names_zeros_pressing_on_the_per_test_box():
+    from frictionuq.report.sections.fits import _per_test_offsets
+    assert _per_test_offsets(None) == []
+    html = str(_per_test_offsets({"box_N": [-15000.0, 15000.0], "at_box_edge": ["sine-2Hz"]}))
+    assert "its own force zero" in html and "[-15000, 15000] N" in html
+    assert "pressing against that box: sine-2Hz" in html
+    assert "none presses against it" in str(_per_test_offsets({"box_N": [-1.0, 1.0], "at_box_edge": []}))
