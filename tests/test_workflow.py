@@ -208,11 +208,13 @@ def test_workflow_force_offset_key(tmp_path):
 
 
 def test_workflow_refuses_per_test_offsets_with_what_they_cannot_serve(tmp_path):
-    """[fit] force_offset = "per_test" with the arma likelihood, or with a noise effect screened
-    by an enabled [discrepancy] stage: refused at load, naming the key."""
+    """[fit] force_offset = "per_test" with the arma likelihood, a noise effect in the model, or
+    one screened by an enabled [discrepancy] stage: refused at load, naming the key."""
     base = BASE.replace("[fit]", "[fit]\nforce_offset = 'per_test'")
     with pytest.raises(InputError, match=r"\[fit\]\.force_offset.*'arma'"):
         load_workflow(_write(tmp_path, "", base.replace("[fit]", "[fit]\nlikelihood = 'arma'")))
     with pytest.raises(InputError, match=r"\[fit\]\.force_offset.*chatter"):
         load_workflow(_write(tmp_path, "\n[discrepancy]\nenabled = true\nextra_effects = ['chatter']\n", base))
+    with pytest.raises(InputError, match=r"\[fit\]\.force_offset.*\[fit\]\.effects has chatter"):
+        load_workflow(_write(tmp_path, "", base.replace("[fit]", "[fit]\neffects = ['chatter']")))
     assert load_workflow(_write(tmp_path, "\n[discrepancy]\nenabled = true\n", base)).fit_config().force_offset == "per_test"

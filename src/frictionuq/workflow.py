@@ -15,8 +15,8 @@ the campaign's own applied unit for `applied` (e.g. lb).
                 drive_lowpass = "auto" (default: 20 where eps > 0) | "off" | MULT
                 (infer.drivefilter), reversal = "extreme" (default) | "detection"
                 (model.REVERSAL_RULES), force_offset = "shared" (default) | "per_test" (each
-                test's own load-cell zero, integrated out), n_predictive = 200, [fit.priors] (spec names: a number
-                fixes the parameter, a table {dist, lower, upper, mu, sd} sets its prior; an
+                test's own load-cell zero, integrated out), n_predictive = 200, [fit.priors]
+                (spec names: a number fixes the parameter, a table {dist, lower, upper, mu, sd} sets its prior; an
                 effect's parameter only where that effect is in the model, e.g. chatter's
                 opt-in tail b_ch = {dist = "uniform", lower = 0, upper = 1}),
                 [fit.sampler] (frictionuq.infer.sampler.SamplerConfig fields)
@@ -60,7 +60,8 @@ PUBLISHED = ("none", "brfd", "mfd")
 SECTIONS = {
     "workflow": {"name", "description", "campaign", "seed", "output", "report"},
     "fit": {"by", "model", "effects", "likelihood", "tests", "kinds", "samples_per_cycle",
-            "simulate_at", "eps", "drive_lowpass", "reversal", "force_offset", "n_predictive", "priors", "sampler"},
+            "simulate_at", "eps", "drive_lowpass", "reversal", "force_offset", "n_predictive",
+            "priors", "sampler"},
     "law": {"enabled", "family"},
     "predict": {"n_draws", "validate", "harmonic", "ground_motion"},
     "compare": {"enabled", "models", "tests", "kinds", "samples_per_cycle", "sampler"},
@@ -408,6 +409,9 @@ def load_workflow(path) -> Workflow:
         if cfg["fit"]["likelihood"] == "arma":
             c.fail("[fit].force_offset", "'per_test' works with the ar1 and iid likelihoods, not "
                    "'arma'")
+        if set(cfg["fit"]["effects"]) & NOISE_EFFECTS:
+            c.fail("[fit].force_offset", f"'per_test' works with no noise effect, and [fit].effects "
+                   f"has {sorted(set(cfg['fit']['effects']) & NOISE_EFFECTS)[0]}")
         noise = set(cfg["discrepancy"]["extra_effects"] or ()) & NOISE_EFFECTS
         if cfg["discrepancy"]["enabled"] and noise:
             c.fail("[fit].force_offset", f"'per_test' cannot be screened with the noise effect "
