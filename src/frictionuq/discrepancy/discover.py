@@ -77,14 +77,11 @@ def _model_forces(level_tests, cfg, effects, map_values: dict) -> list[tuple]:
     gain of a noise effect there or None)] per test."""
     lp, _ = fits.logpost_for(level_tests, effects, cfg)
     th = lp.space.to_theta({n: map_values[n] for n in lp.space.names})[None, :]
-    off = float(lp.space.offset(th)[0])
     out = []
     for j, rec in enumerate(lp.records):
         g = lp.noise_gain(th, j)
-        F = lp.simulate(th, rec)[0]
         # per-test offsets (FitConfig.force_offset): each test's own zero, profiled at the MAP
-        F = F + (float(np.mean(rec.y - F)) if lp.space.per_test_offset else off)
-        out.append((rec, F, None if g is None else g[0]))
+        out.append((rec, lp.fitted_force(th, rec)[0], None if g is None else g[0]))
     return out
 
 

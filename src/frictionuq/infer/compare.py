@@ -53,12 +53,9 @@ def _rmse(logpost, res, n_draws: int, rng) -> tuple[float, dict]:
     th = _draws(res)
     idx = rng.choice(th.shape[0], size=min(n_draws, th.shape[0]), replace=False)
     sel = th[idx]
-    off = logpost.space.offset(sel)
     sq, n, per = 0.0, 0, {}
     for rec in logpost.records:
-        F = logpost.simulate(sel, rec) + off[:, None]
-        if logpost.space.per_test_offset:      # each test's own zero, profiled per draw
-            F = F + np.mean(rec.y[None, :] - F, axis=1, keepdims=True)
+        F = logpost.fitted_force(sel, rec)     # per-test offsets: each test's zero, profiled
         r = rec.y - np.median(F, axis=0)
         per[rec.id] = float(np.sqrt(np.mean(r**2)))
         sq += float(np.sum(r**2))

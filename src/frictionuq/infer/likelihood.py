@@ -284,6 +284,15 @@ class LogPosterior:
         st = noisemodel.suff_stats(e - c[:, None])
         return ll, np.column_stack(st + (c,))
 
+    def fitted_force(self, theta, rec: FitRecord) -> np.ndarray:
+        """(W, N) simulated force plus the load-cell zero: the shared offset, or with per-test
+        offsets each row's own, profiled (the mean of y - F)."""
+        theta = np.atleast_2d(theta)
+        F = self.simulate(theta, rec)
+        if self.space.per_test_offset:
+            return F + np.mean(rec.y[None, :] - F, axis=1, keepdims=True)
+        return F + self.space.offset(theta)[:, None]
+
     def residuals(self, theta, rec: FitRecord, off=None) -> np.ndarray:
         """Residuals y - F - offset (W, N) of one record; with per-test offsets (Space.offset_box)
         minus each row's own mean (the offset profiled out, as least squares and the residual
