@@ -254,7 +254,9 @@ def _note_not_converged(ids, what: str) -> None:
 
 
 def _sampler_config(a):
-    """The SamplerConfig of the options --max-steps and --stored-run (the rest: defaults)."""
+    """The SamplerConfig of the options --max-steps, --stored-run and --temperatures (the rest:
+    defaults)."""
     from ..infer.sampler import SamplerConfig
-    kw = {"max_steps": a.max_steps, "stored_run": a.stored_run}
+    kw = {"max_steps": a.max_steps, "stored_run": a.stored_run,
+          "temperatures": getattr(a, "temperatures", None)}
     return SamplerConfig(**{k: v for k, v in kw.items() if v is not None})

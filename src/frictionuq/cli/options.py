@@ -21,6 +21,10 @@ def _add_selection(s, max_steps_help: str) -> None:
     s.add_argument("--stored-run", choices=STORED_RUNS, default=None,
                    help="the sampler's stored run: 16 independent chains (default) or the burn-in's "
                         "ensemble of walkers with differential-evolution moves")
+    s.add_argument("--temperatures", type=int, default=None, metavar="L",
+                   help="parallel tempering: L tempered copies of each of the stored run's chains "
+                        "(default 1: none), for posteriors with separated modes; costs L times "
+                        "the evaluations per step")
 
 
 def _add_prior(s, whose: str) -> None:

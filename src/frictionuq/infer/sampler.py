@@ -90,6 +90,7 @@ from .likelihood import LogPosterior, UnboundedPosterior
 from .localfit import gauss_newton_cov
 from .optimize import find_map
 from .proposal import IndependenceMove, Proposal, proposal_change
+from .tempering import default_ratio, ladder, swap_rates, tempered_moves
 from .storage import load_account, load_proposal, open_backend, store_account, store_proposal
 from .priors import RecordScales
 from .walkers import initial_ball, pooled_states, profile_sides, reinitialise
@@ -125,6 +126,8 @@ class SamplerConfig:
     stored_run: str = "chains"        # "chains": run_walkers independent chains; "ensemble": the
                                       # burn-in's walkers with DE moves beside the independence move
     run_walkers: int = 16             # the chains' number
+    temperatures: int = 1             # tempered copies of each chain (1: none; infer.tempering)
+    temper_ratio: float | None = None  # the ladder's beta ratio; None: tempering.default_ratio
     start_profile: bool = True        # start ball from 1-D profiles (walkers.profile_sides)
     thin_output: int | None = None    # default: about tau/4
     progress: bool | None = None      # default: on a terminal
@@ -153,6 +156,11 @@ class SamplerConfig:
         if not self.independence_weight <= 1:
             raise InputError(f"sampler: independence_weight must be in (0, 1], got "
                              f"{self.independence_weight!r}")
+        if self.temper_ratio is not None and not self.temper_ratio < 1:
+            raise InputError(f"sampler: temper_ratio must be in (0, 1), got {self.temper_ratio!r}")
+        if self.temperatures > 1 and not (self.stored_run == "chains" and self.independence):
+            raise InputError("sampler: temperatures > 1 needs stored_run = \"chains\" with the "
+                             "independence move (tempering wraps its Metropolis-Hastings moves)")
         if self.run_walkers < 4:
             raise InputError(f"sampler: run_walkers must be >= 4 (R-hat compares chains), got "
                              f"{self.run_walkers!r}")
@@ -284,7 +292,7 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
     ndim = sp.ndim
     nw = _nwalkers(cfg, ndim)
     # the stored run's walkers: the burn-in's ensemble, or run_walkers independent chains
-    nrun = cfg.run_walkers if _independent(cfg) else nw
+    nrun = cfg.run_walkers * cfg.temperatures if _independent(cfg) else nw
     t0 = time.perf_counter()
     rng = np.random.default_rng(seed)
     target = UnboundedPosterior(logpost, stats=True)
@@ -317,8 +325,13 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
         proposal = load_proposal(backend)
     else:
         store_proposal(backend, proposal)
-    sampler = emcee.EnsembleSampler(nrun, ndim, target, vectorize=True,
-                                    moves=_moves(cfg, proposal, stored=True), backend=backend)
+    moves = _moves(cfg, proposal, stored=True)
+    if cfg.temperatures > 1:
+        betas = ladder(cfg.temperatures, cfg.temper_ratio or default_ratio(ndim))
+        log("tempered chains: inverse temperatures " + ", ".join(f"{b:.3g}" for b in betas))
+        moves = tempered_moves(moves, betas, cfg.run_walkers, len(logpost.records))
+    sampler = emcee.EnsembleSampler(nrun, ndim, target, vectorize=True, moves=moves,
+                                    backend=backend)
     if not resumed:
         sampler.random_state = np.random.RandomState(seed % (2**32)).get_state()
 
@@ -335,7 +348,7 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
     if backend is not None:
         backend.keep_open()
     try:
-        n_done, converged = _run(sampler, state, cfg, sp, n_done, history, log, intr)
+        n_done, converged = _run(sampler, state, cfg, sp, n_done, history, log, intr, moves)
     finally:
         if backend is not None:
             backend.close()
@@ -373,9 +386,16 @@ def run_steps(sampler, state, n: int, progress=False, intr: Interrupts | None = 
     return state
 
 
-def _run(sampler, state, cfg, sp, n_done, history, log, intr=None):
+def _cold(cfg: SamplerConfig, n_walkers: int) -> slice:
+    """The stored run's walkers that sample the posterior: all, or with tempering the first
+    run_walkers (level beta = 1; infer.tempering)."""
+    return slice(0, cfg.run_walkers if cfg.temperatures > 1 else n_walkers)
+
+
+def _run(sampler, state, cfg, sp, n_done, history, log, intr=None, moves=()):
     """The stored run in chunks until the convergence criteria or the step cap."""
     prev_tau = None
+    cold = _cold(cfg, sampler.nwalkers)
     converged = False
     while n_done < cfg.max_steps:
         n = min(cfg.chunk, cfg.max_steps - n_done)
@@ -385,14 +405,18 @@ def _run(sampler, state, cfg, sp, n_done, history, log, intr=None):
         if n_done < cfg.min_steps:
             continue
         burn = int(n_done * cfg.discard_fraction)
-        c = check(sampler.get_chain(discard=burn), cfg, sp)
+        c = check(sampler.get_chain(discard=burn)[:, cold], cfg, sp)
         h = {"steps": n_done, "tau_max": c["tau_max"],
-             "acceptance": float(np.mean(sampler.acceptance_fraction)),
+             "acceptance": float(np.mean(sampler.acceptance_fraction[cold])),
              "r_hat_max": c["r_hat_max"], "ess_min": c["ess_min"],
              "worst": sp.names[int(np.argmax(c["r_hat"]))]}
+        rates = swap_rates(moves)
+        if rates is not None:
+            h["swap_acceptance"] = [float(r) for r in rates]
         history.append(h)
         log(f"step {n_done}: max tau {c['tau_max']:.1f} steps, R-hat max {h['r_hat_max']:.3f} "
-            f"({h['worst']}), ESS min {h['ess_min']:.0f}, acceptance {h['acceptance']:.2f}")
+            f"({h['worst']}), ESS min {h['ess_min']:.0f}, acceptance {h['acceptance']:.2f}"
+            + ("" if rates is None else ", swaps accepted " + " / ".join(f"{r:.2f}" for r in rates)))
         kept = n_done - burn
         tau_ok = prev_tau is not None and kept > cfg.tau_factor * c["tau_max"] and \
             abs(c["tau_max"] - prev_tau) / c["tau_max"] < cfg.tau_rtol
@@ -406,20 +430,21 @@ def _run(sampler, state, cfg, sp, n_done, history, log, intr=None):
 def _result(sampler, cfg, sp, n_done, converged, theta_map, lp_map, logpost, t0, burn_in_steps,
             history, map_start: str = "search") -> SampleResult:
     ndim = sp.ndim
+    cold = _cold(cfg, sampler.nwalkers)
     burn = int(n_done * cfg.discard_fraction)
-    tau = autocorr_time(sampler.get_chain(discard=burn))
+    tau = autocorr_time(sampler.get_chain(discard=burn)[:, cold])
     thin = thinning(cfg, tau)
-    u = sampler.get_chain(discard=burn, thin=thin)
+    u = sampler.get_chain(discard=burn, thin=thin)[:, cold]
     theta = sp.from_u(u)
-    lp_u = sampler.get_log_prob(discard=burn, thin=thin)
+    lp_u = sampler.get_log_prob(discard=burn, thin=thin)[:, cold]
     lp_theta = lp_u - sp.log_jac_u(u.reshape(-1, ndim)).reshape(lp_u.shape)
-    blobs = sampler.get_blobs(discard=burn, thin=thin)
+    blobs = sampler.get_blobs(discard=burn, thin=thin)[:, cold]
     R = len(logpost.records)
     return SampleResult(
         chain=theta, log_prob=lp_theta, blobs=blobs[..., :R],
         noise_stats=blobs[..., R:].reshape(blobs.shape[:2] + (R, logpost.n_stats)),
         tau=np.asarray(tau, float), n_steps=n_done, burn=burn, thin=thin,
-        acceptance=float(np.mean(sampler.acceptance_fraction)), converged_tau=converged,
+        acceptance=float(np.mean(sampler.acceptance_fraction[cold])), converged_tau=converged,
         theta_map=theta_map, log_prob_map=lp_map, n_evals=int(logpost.n_evals),
         seconds=time.perf_counter() - t0, burn_in_steps=burn_in_steps, history=history,
         map_start=map_start)

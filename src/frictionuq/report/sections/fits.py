@@ -127,7 +127,10 @@ def _stored_run(rec: dict, smp: dict) -> str:
         design = "ensemble" if cfg["run_walkers"] is None else "chains"
     n = smp.get("walkers", DASH)
     if design == "chains":
-        return f"{n} independent chains (independence move and random walk)"
+        L = int(cfg.get("temperatures") or 1)
+        tempered = "" if L < 2 else (f", each with {L - 1} tempered copies (parallel tempering; "
+                                     f"only the untempered chains are the posterior)")
+        return f"{n} independent chains (independence move and random walk){tempered}"
     if design == "ensemble":
         return f"ensemble of {n} walkers (independence and differential-evolution moves)"
     return DASH
