@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/bench_fit.py [--case twin|arts-d1|all] [--simulate-at raw|kept|both]
         [--sampler chains|ensemble|both] [--jobs 1|2|both] [--max-steps N] [--tests ID ...]
-        [--force-offset shared|per_test] [--out DIR]
+        [--force-offset shared|per_test] [--temperatures L] [--out DIR]
 
 Cases:
   * `twin`     one applied force of the BRFD twin (data/brfd-twin, 267 N, all its tests: four
@@ -26,6 +26,8 @@ with their time ratio (the same posteriors either way).
 --tests: only these tests of the case's campaign (e.g. one arts-d1 level).
 --force-offset: one load-cell zero per fit (shared, the default) or each test's own, integrated
 out (per_test: FitConfig.force_offset).
+--temperatures: parallel tempering of the stored run's chains with L levels (SamplerConfig.
+temperatures; 1, the default: none).
 Targets: under 2 minutes for the twin force level, under 10 minutes for all of brfd-arts-d1, on
 the 2-core machine. Run it on a quiet machine; the figures are in the README
 (current) and docs/log-calibration.md (every run).
@@ -59,14 +61,17 @@ SAMPLERS = {"chains": {},
 
 def run(case: str, out: Path, simulate_at: str = "raw", sampler: str = "chains",
         tests=None, jobs: int = 1, max_steps: int | None = None,
-        force_offset: str = "shared") -> dict:
+        force_offset: str = "shared", temperatures: int = 1) -> dict:
     path, sel, target = CASES[case]
     caps = {"max_steps": max_steps} if max_steps else {}
+    if temperatures > 1:
+        caps["temperatures"] = temperatures
     cfg = FitConfig(tests=tuple(tests) if tests else sel.get("tests"), simulate_at=simulate_at,
                     sampler=SamplerConfig(progress=False, **SAMPLERS[sampler], **caps),
                     force_offset=force_offset)
     t0 = time.perf_counter()
-    s = fit_campaign(path, out / f"{case}-{simulate_at}-{sampler}-j{jobs}-{force_offset}", by="applied",
+    s = fit_campaign(path, out / f"{case}-{simulate_at}-{sampler}-j{jobs}-{force_offset}-T{temperatures}",
+                     by="applied",
                      config=cfg, jobs=jobs)
     wall = time.perf_counter() - t0
     rows = []
@@ -76,7 +81,8 @@ def run(case: str, out: Path, simulate_at: str = "raw", sampler: str = "chains",
         rhat = max(p["r_hat"] for p in free.values())
         rows.append((f["id"], f["seconds"], f["model_evaluations"], ess, rhat, f["converged"],
                      f["sampler_steps"], f["tau_max"]))
-    tag = "" if force_offset == "shared" else f", {force_offset} offsets"
+    tag = ("" if force_offset == "shared" else f", {force_offset} offsets") + \
+        ("" if temperatures == 1 else f", T{temperatures}")
     return {"case": f"{case} ({simulate_at}, {sampler}, j{jobs}{tag})", "wall": wall, "target": target,
             "rows": rows}
 
@@ -92,6 +98,8 @@ def main(argv=None):
     ap.add_argument("--max-steps", type=int, default=None, help="cap on stored steps per fit")
     ap.add_argument("--force-offset", choices=["shared", "per_test"], default="shared",
                     help="one load-cell zero per fit (default) or each test's own")
+    ap.add_argument("--temperatures", type=int, default=1,
+                    help="parallel tempering levels of the stored run's chains (1: none)")
     ap.add_argument("--out", default=None, help="keep the fit outputs here (default: temporary)")
     a = ap.parse_args(argv)
     print(f"frictionuq {frictionuq.__version__}, Python {platform.python_version()}, "
@@ -102,7 +110,7 @@ def main(argv=None):
         ats = ["raw", "kept"] if a.simulate_at == "both" else [a.simulate_at]
         sms = ["ensemble", "chains"] if a.sampler == "both" else [a.sampler]
         jbs = [1, 2] if a.jobs == "both" else [int(a.jobs)]
-        results = [run(c, out, at, sm, a.tests, j, a.max_steps, a.force_offset)
+        results = [run(c, out, at, sm, a.tests, j, a.max_steps, a.force_offset, a.temperatures)
                    for c in cases for at in ats for sm in sms for j in jbs]
     print(f"{'fit':<42}{'wall s':>8}{'evals':>10}{'evals/s':>9}{'steps':>8}{'tau':>7}"
           f"{'ESS min':>9}{'R-hat':>7}{'ESS/s':>7}  converged")
@@ -113,7 +121,8 @@ def main(argv=None):
         print(f"{r['case']:<42}{r['wall']:8.0f} s in all (target {r['target']:.0f} s: "
               f"{'met' if r['wall'] <= r['target'] else 'NOT met'}, ratio {r['wall'] / r['target']:.2f})")
     w = {r["case"]: r["wall"] for r in results}
-    tag = "" if a.force_offset == "shared" else f", {a.force_offset} offsets"
+    tag = ("" if a.force_offset == "shared" else f", {a.force_offset} offsets") + \
+        ("" if a.temperatures == 1 else f", T{a.temperatures}")
     for c in cases:
         for j in jbs:
             for sm in sms if a.simulate_at == "both" else []:

@@ -15,6 +15,8 @@ TWIN = str(Path(__file__).resolve().parents[1] / "data" / "brfd-twin")
     (["--test", "no-such-test"], "no test 'no-such-test'; its tests: h-35N-0.05Hz, "),
     (["--test", "h-35N-0.05Hz", "--test", "h-35N-0.5hz"], "no test 'h-35N-0.5hz'; its tests: "),
     (["--jobs", "0"], "jobs must be an integer >= 1, got 0"),
+    (["--temperatures", "0"], "temperatures must be an integer >= 1, got 0"),
+    (["--temperatures", "3", "--stored-run", "ensemble"], "temperatures > 1 needs stored_run"),
     (["--effect", "applied_tracking", "--test", "h-267N-0.5Hz", "--model", "lugre", "--effect", "stage2_nonlinear"],
      "stage2_nonlinear"),
 ])
@@ -226,3 +228,12 @@ def test_force_offset_option_reaches_the_fit_config(tmp_path, monkeypatch, comma
     spec = plan(load_campaign(TWIN), "applied", seen[0])[0]
     space = build_space(spec, record_scales([t.record for t in spec.tests]))
     assert "force_offset" not in space.names and space.offset_box[0] < 0 < space.offset_box[1]
+
+
+def test_temperatures_option_reaches_the_sampler_config(tmp_path, monkeypatch):
+    """--temperatures L reaches the FitConfig's sampler of fit (the library call stubbed); the
+    default is no tempering."""
+    for flag, want in (([], 1), (["--temperatures", "4"], 4)):
+        seen = _configs_seen(monkeypatch, "frictionuq.infer.fit.fit_campaign",
+                             ["fit", TWIN, "--out", str(tmp_path / "o")] + flag)
+        assert seen and all(c.sampler.temperatures == want for c in seen), seen

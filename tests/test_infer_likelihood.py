@@ -290,3 +290,31 @@ def test_independent_chains_run_reproduces_and_resumes(small_fit, tmp_path):
     assert res.resumed_from == [40]          # resumed, not recomputed from the same seed
     after = emcee.backends.HDFBackend(str(part), read_only=True).get_chain()
     assert np.array_equal(after, emcee.backends.HDFBackend(str(tmp_path / "full.h5"), read_only=True).get_chain())
+
+
+def test_tempered_chains_run_reproduces_and_resumes(small_fit, tmp_path):
+    """The stored run with parallel tempering (temperatures=3): the backend holds all 3 x 8
+    walkers, the result only the 8 untempered chains, every stored walker's log-posterior is the
+    untempered one at its coordinates (swaps move states whole), the history records the swap
+    rates, and a run stopped after 40 steps and resumed to 60 equals the uninterrupted one."""
+    import emcee
+    from frictionuq.infer.likelihood import UnboundedPosterior
+    lp, scales, _ = small_fit
+    kw = dict(nwalkers=32, run_walkers=8, temperatures=3, chunk=20, min_steps=20, burn_rounds=2,
+              burn_steps=10, burn_max_rounds=2, n_random_starts=0, n_prior_starts=1,
+              progress=False, tau_factor=1e9, thin_output=1)
+    full = sample(lp, scales, seed=3, backend_path=tmp_path / "full.h5",
+                  cfg=SamplerConfig(max_steps=60, **kw), resume=False)
+    be = emcee.backends.HDFBackend(str(tmp_path / "full.h5"), read_only=True)
+    assert be.get_chain().shape == (60, 24, lp.space.ndim)
+    assert full.chain.shape[1] == 8 and full.n_steps == 60
+    u, lpu = be.get_chain()[-1], be.get_log_prob()[-1]
+    assert np.allclose(UnboundedPosterior(lp)(u)[:, 0], lpu)
+    assert all(len(h["swap_acceptance"]) == 2 for h in full.history)
+    part = tmp_path / "part.h5"
+    sample(lp, scales, seed=3, backend_path=part, cfg=SamplerConfig(max_steps=40, **kw), resume=False)
+    res = sample(lp, scales, seed=3, backend_path=part, cfg=SamplerConfig(max_steps=60, **kw),
+                 resume=True)
+    assert res.resumed_from == [40]
+    assert np.array_equal(emcee.backends.HDFBackend(str(part), read_only=True).get_chain(), be.get_chain())
+    assert np.array_equal(res.chain, full.chain)

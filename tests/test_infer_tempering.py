@@ -111,3 +111,13 @@ def test_tempering_is_refused_where_it_cannot_run():
         SamplerConfig(temperatures=3, temper_ratio=1.5)
     with pytest.raises(InputError, match="temperatures must be an integer >= 1"):
         SamplerConfig(temperatures=0)
+
+
+def test_the_report_names_the_tempered_copies():
+    from frictionuq.report.sections.fits import _stored_run
+    rec = {"config": {"sampler": {"stored_run": "chains", "temperatures": 4}}}
+    assert _stored_run(rec, {"walkers": 16}) == (
+        "16 independent chains (independence move and random walk), each with 3 tempered copies "
+        "(parallel tempering; only the untempered chains are the posterior)")
+    rec["config"]["sampler"]["temperatures"] = 1
+    assert _stored_run(rec, {"walkers": 16}) == "16 independent chains (independence move and random walk)"
