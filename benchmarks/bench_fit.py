@@ -27,7 +27,8 @@ with their time ratio (the same posteriors either way).
 --force-offset: one load-cell zero per fit (shared, the default) or each test's own, integrated
 out (per_test: FitConfig.force_offset).
 --temperatures: parallel tempering of the stored run's chains with L levels (SamplerConfig.
-temperatures; 1, the default: none).
+temperatures; 1, the default: none); with --sampler chains only (the ensemble's DE moves are
+not tempered).
 Targets: under 2 minutes for the twin force level, under 10 minutes for all of brfd-arts-d1, on
 the 2-core machine. Run it on a quiet machine; the figures are in the README
 (current) and docs/log-calibration.md (every run).
@@ -70,7 +71,8 @@ def run(case: str, out: Path, simulate_at: str = "raw", sampler: str = "chains",
                     sampler=SamplerConfig(progress=False, **SAMPLERS[sampler], **caps),
                     force_offset=force_offset)
     t0 = time.perf_counter()
-    s = fit_campaign(path, out / f"{case}-{simulate_at}-{sampler}-j{jobs}-{force_offset}-T{temperatures}",
+    s = fit_campaign(path, out / f"{case}-{simulate_at}-{sampler}-j{jobs}-{force_offset}"
+                     + (f"-T{temperatures}" if temperatures > 1 else ""),
                      by="applied",
                      config=cfg, jobs=jobs)
     wall = time.perf_counter() - t0
@@ -102,6 +104,8 @@ def main(argv=None):
                     help="parallel tempering levels of the stored run's chains (1: none)")
     ap.add_argument("--out", default=None, help="keep the fit outputs here (default: temporary)")
     a = ap.parse_args(argv)
+    if a.temperatures > 1 and a.sampler != "chains":
+        ap.error("--temperatures > 1 tempers the independent chains: use it with --sampler chains")
     print(f"frictionuq {frictionuq.__version__}, Python {platform.python_version()}, "
           f"{os.cpu_count()} cores")
     cases = ["twin", "arts-d1"] if a.case == "all" else [a.case]

@@ -308,8 +308,10 @@ def test_tempered_chains_run_reproduces_and_resumes(small_fit, tmp_path):
     be = emcee.backends.HDFBackend(str(tmp_path / "full.h5"), read_only=True)
     assert be.get_chain().shape == (60, 24, lp.space.ndim)
     assert full.chain.shape[1] == 8 and full.n_steps == 60
-    u, lpu = be.get_chain()[-1], be.get_log_prob()[-1]
-    assert np.allclose(UnboundedPosterior(lp)(u)[:, 0], lpu)
+    D, R = lp.space.ndim, len(lp.records)
+    again = UnboundedPosterior(lp, stats=True)(be.get_chain().reshape(-1, D))
+    assert np.allclose(again[:, 0], be.get_log_prob().ravel())
+    assert np.allclose(again[:, 1:1 + R], be.get_blobs().reshape(-1, again.shape[1] - 1)[:, :R])
     assert all(len(h["swap_acceptance"]) == 2 for h in full.history)
     part = tmp_path / "part.h5"
     sample(lp, scales, seed=3, backend_path=part, cfg=SamplerConfig(max_steps=40, **kw), resume=False)

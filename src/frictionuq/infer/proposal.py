@@ -149,7 +149,10 @@ class RandomWalkMove(emcee.moves.MHMove):
 
     def __init__(self, cov):
         cov = np.atleast_2d(np.asarray(cov, float))
-        self.L = np.linalg.cholesky(cov)
+        try:
+            self.L = np.linalg.cholesky(cov)
+        except np.linalg.LinAlgError:    # not positive definite: the widths alone
+            self.L = np.diag(np.sqrt(np.maximum(np.diag(cov), 1e-300)))
         super().__init__(self._propose, ndim=cov.shape[0])
 
     def _propose(self, x0, random):

@@ -1,9 +1,11 @@
 """Parallel tempering for the stored run's independent chains (SamplerConfig.temperatures).
 
-Why: a posterior with separated modes. At the real arts-d1 70 lb level the Stribeck velocity
-v_s has two modes (1-3 and 20-50 mm/s, differing in fc, fs_bwd and sigma0 too) and a chain
-changes mode about once per 1,000 steps: R-hat 1.47 after 6,000 steps, whatever the move
-(docs/log-calibration.md). Tempered copies of each chain, at inverse temperatures
+Why: a posterior with separated modes, where a chain seldom crosses from one to the other.
+It was built for the real arts-d1 70 lb level, whose Stribeck velocity v_s looked bimodal (R-hat
+1.47 after 6,000 steps, whatever the move); measured there it did not help (R-hat 1.22 after
+2,000 steps with 4 levels): the upper "mode" is a tail toward v_s's prior bound, which the moves
+cross slowly at any temperature (docs/log-calibration.md, 2026-12-02 afternoon). Opt-in, not
+the default. Tempered copies of each chain, at inverse temperatures
 beta_l = ratio^l (l = 0 .. L-1) of the likelihood, cross between the modes where the cold chain
 cannot, and swaps of adjacent levels carry the crossings down to beta = 1 (Geyer 1991; Earl and
 Deem 2005; ptemcee, Vousden et al. 2016, whose swap rule this is).
@@ -24,6 +26,11 @@ target invariant. The ladder's ratio: a swap is accepted about as often as
 (beta_l - beta_{l+1}) times the spread of the log-likelihood at level l, about sqrt(D/2) / beta_l,
 is of order one: ratio 1 - 1 / sqrt(D/2) keeps that product at one whatever the level (0.59 at
 D = 12), the default `temper_ratio` None.
+
+Every level uses the stored run's moves and weights; the independence proposal is the one
+fitted to the untempered burn-in, so the hotter levels accept it less and move mostly by the
+(widened) random walk. The swap counts (TemperedMove.swaps, the history's swap_acceptance) are
+those of the current session: a resumed run counts afresh.
 """
 from __future__ import annotations
 
