@@ -48,7 +48,9 @@ until the chain passes the convergence criteria.
     positions, each moved on its own: the independence move (weight `independence_weight`,
     0.8) and a Gaussian random walk with the last burn-in round's covariance scaled by
     2.38^2 / D. No ensemble move, so the walkers are independent Markov chains, the setting
-    R-hat was made for.
+    R-hat was made for. The random walk is proposal.RandomWalkMove, a displacement per walker
+    (emcee's GaussianMove with a covariance matrix moves every walker by one shared vector).
+    With `temperatures` L > 1 each chain has L - 1 tempered copies (infer.tempering; opt-in).
   - "ensemble": the burn-in's walkers with the independence move (the same weight) and the DE
     moves for the rest (70/10/20 as above).
   Measured (docs/log-calibration.md): BRFD twin 267 N, one shared burn-in, 16 chains met R-hat
