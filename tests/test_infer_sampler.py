@@ -106,7 +106,7 @@ def _narrow_start_burn_in(burn_stable: float, burn_shift: float):
     """Burn-in on a 14-D standard Gaussian (the twin fit's dimension and walker count) from a
     start ball 1,000 times too narrow along the first axis (as the Gauss-Newton ball of the BRFD
     twin's d3, 0.009 of its posterior sd): (proposal, steps run)."""
-    from frictionuq.infer.sampler import burn_in
+    from frictionuq.infer.burnin import burn_in
 
     def target(x):
         return (-0.5 * np.sum(x * x, axis=1))[:, None]
@@ -143,10 +143,10 @@ def test_independent_chains_move_each_walker_on_its_own_and_sample_the_target():
     import emcee
     from frictionuq import azadapter
     from frictionuq.infer.proposal import IndependenceMove, Proposal, RandomWalkMove
-    from frictionuq.infer.sampler import _moves
+    from frictionuq.infer.burnin import moves_for
     from test_infer_proposal import _log_p, _skewed, check_skewed_sample
     pool = _skewed(600, np.random.default_rng(7)) + np.array([0.2, 0.0, -0.1])
-    moves = _moves(SamplerConfig(run_walkers=8), Proposal.fit(pool), stored=True)
+    moves = moves_for(SamplerConfig(run_walkers=8), Proposal.fit(pool), stored=True)
     assert [type(m) for m, _ in moves] == [IndependenceMove, RandomWalkMove]
     assert [w for _, w in moves] == [0.8, pytest.approx(0.2)]
     s = emcee.EnsembleSampler(8, 3, _log_p, vectorize=True, moves=moves)

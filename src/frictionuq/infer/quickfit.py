@@ -22,9 +22,10 @@ from dataclasses import dataclass
 import emcee
 import numpy as np
 
+from .burnin import moves_for
 from .likelihood import LogPosterior, UnboundedPosterior
 from .localfit import gauss_newton_cov, least_squares_fit, set_noise_shape
-from .sampler import SamplerConfig, _moves
+from .sampler import SamplerConfig
 from .walkers import initial_ball
 
 
@@ -52,7 +53,7 @@ def quick_sample(logpost: LogPosterior, seed, steps: int, nwalkers: int = 32,
     cov = gauss_newton_cov(logpost, th_ls)
     start = sp.to_u(initial_ball(th_ls, cov, nwalkers, rng, sp))
     sampler = emcee.EnsembleSampler(nwalkers, sp.ndim, UnboundedPosterior(logpost), vectorize=True,
-                                    moves=_moves(SamplerConfig()))
+                                    moves=moves_for(SamplerConfig()))
     # emcee copies NumPy's global state at construction: seed its own state explicitly
     sampler.random_state = np.random.RandomState(rng.integers(0, 2**32, size=4, dtype=np.uint64)
                                                  .astype(np.uint32)).get_state()

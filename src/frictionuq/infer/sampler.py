@@ -15,30 +15,9 @@ until the chain passes the convergence criteria.
   N(MAP, Sigma/4) with Sigma the Gauss-Newton covariance. BRFD twin 267 N: the burn-in settled
   after 3 rounds instead of 7-8 (d3, whose Gauss-Newton sd is 40 times too small on one side,
   no longer has to spread round by round).
-* Burn-in (not stored, always discarded): at least `burn_rounds` rounds of `burn_steps` steps,
-  more (up to `burn_max_rounds`) while the median walker's log-posterior still rises by more
-  than sqrt(D/2) per round, walkers are stuck, or the ensemble is still spreading: the proposal
-  fitted to the round (below) has a parameter width (half its 15.9-84.1 % range) more than
-  `burn_stable` times (or less than 1 / `burn_stable` times) the previous round's, or a median
-  moved by more than `burn_shift` widths (function burn_in; the BRFD twin's 267 N level needed
-  five rounds of 500 steps, and with the old two its independence move was accepted 0.9 % of the
-  time and tau was 149 steps). Rounds of 250 steps rather than 500: the proposal, inflated by
-  1.25x, is refitted twice as often, so a start ball too narrow widens in fewer steps (twin 267 N:
-  seven rounds, 1,750 steps, against five rounds, 2,500 steps; 109 s against 140 s in all). After each round
-  the walkers are re-initialised by drawing states from the second half of that round, pooled
-  over the walkers that are not stuck (a walker whose mean log-posterior lies more than
-  max(10, 3 sqrt(D/2)) below the median walker's is stuck). The Gauss-Newton ball is far too
-  narrow for the weakly identified parameters and the MAP need not be the mode; the pooled
-  re-initialisation spreads the ensemble over the posterior and drops stuck walkers (a standard
-  emcee practice; it only affects the discarded burn-in).
-* Moves of the burn-in: differential evolution (70 %), DE with gamma = 1 (10 %: the
-  "mode-jumping" step of ter Braak 2006) and DE snooker (20 %) (ter Braak & Vrugt 2008; emcee
-  docs) in the first round. From the second round on, half of the steps are an independence
-  Metropolis-Hastings move (proposal.IndependenceMove: a multivariate t, 5 degrees of freedom,
-  on Johnson SU-Gaussianised marginals, fitted to the previous burn-in round with its covariance
-  inflated by 1.25^2; the last round's proposal is fixed for the whole stored run and kept in
-  the HDF5 file) and the rest DE (35 %), DE gamma = 1 (5 %) and snooker (10 %). DE needs more
-  than 2 x ndim walkers; the burn-in has max(32, 2 ndim + 4).
+* Burn-in (not stored, always discarded) and the moves of every phase: infer/burnin.py
+  (rounds until the walkers have settled and the independence proposal stops changing;
+  DE, DE gamma = 1 and snooker moves, plus the independence move from the second round).
 * The stored run (`stored_run`): R-hat treats each walker as a chain, so it needs every
   walker's own chain to hold about a hundred effective draws whatever the walker count, and the
   stored run's cost is proportional to its walkers (with DE alone tau is 60-80 steps on a twin
@@ -75,8 +54,6 @@ until the chain passes the convergence criteria.
 """
 from __future__ import annotations
 
-import os
-import sys
 import time
 from dataclasses import asdict, dataclass, field, fields
 from numbers import Integral, Real
@@ -87,15 +64,15 @@ import numpy as np
 
 from ..errors import InputError
 from ..interrupts import Interrupts, interrupts
+from .burnin import burn_in, independent, moves_for, progress_bar, run_steps
 from .convergence import autocorr_time, check, thinning
 from .likelihood import LogPosterior, UnboundedPosterior
 from .localfit import gauss_newton_cov
 from .optimize import find_map
-from .proposal import IndependenceMove, Proposal, proposal_change
 from .tempering import default_ratio, ladder, swap_rates, tempered_moves
 from .storage import load_account, load_proposal, open_backend, store_account, store_proposal
 from .priors import RecordScales
-from .walkers import initial_ball, pooled_states, profile_sides, reinitialise
+from .walkers import initial_ball, profile_sides
 
 
 #: the stored run's two designs (SamplerConfig.stored_run; module docstring)
@@ -203,78 +180,6 @@ def _nwalkers(cfg: SamplerConfig, ndim: int) -> int:
     return int(w + (w % 2))
 
 
-def _progress(cfg) -> bool:
-    if cfg.progress is not None:
-        return cfg.progress
-    return sys.stderr.isatty() and os.environ.get("FRICTIONUQ_PROGRESS", "1") != "0"
-
-
-def fit_proposal(chain: np.ndarray, log_prob: np.ndarray) -> Proposal:
-    """The independence proposal fitted to a burn-in round's `pooled_states`."""
-    return Proposal.fit(pooled_states(chain, log_prob)[0])
-
-
-def _independent(cfg: SamplerConfig) -> bool:
-    """Whether the stored run moves each walker on its own (module docstring)."""
-    return cfg.stored_run == "chains" and cfg.independence
-
-
-def _moves(cfg: SamplerConfig, proposal=None, stored: bool = False):
-    """The burn-in rounds' moves (stored=False) or the stored run's."""
-    de = emcee.moves.DEMove() if cfg.de_gamma is None else emcee.moves.DEMove(gamma0=cfg.de_gamma)
-    if proposal is None or not cfg.independence:
-        return [(de, 0.7), (emcee.moves.DEMove(gamma0=1.0), 0.1), (emcee.moves.DESnookerMove(), 0.2)]
-    w = cfg.independence_weight if stored else 0.5
-    if stored and _independent(cfg):
-        moves = [(IndependenceMove(proposal), w), (proposal.random_walk(), 1.0 - w)]
-        return [m for m in moves if m[1] > 0]
-    rest = 1.0 - w
-    moves = [(IndependenceMove(proposal), w), (de, 0.7 * rest),
-             (emcee.moves.DEMove(gamma0=1.0), 0.1 * rest), (emcee.moves.DESnookerMove(), 0.2 * rest)]
-    return [m for m in moves if m[1] > 0]
-
-
-def burn_in(target, state: np.ndarray, cfg: SamplerConfig, seed: int, rng, log=None,
-            n_out: int | None = None, intr: Interrupts | None = None):
-    """The burn-in phase (module docstring) from walker positions `state` (walkers, ndim) of
-    the vectorized emcee target. Rounds of cfg.burn_steps steps, at least cfg.burn_rounds, more
-    (up to cfg.burn_max_rounds) while the walkers still climb, some are stuck, or the proposal
-    fitted to the round still differs from the previous round's (proposal_change above
-    cfg.burn_stable or cfg.burn_shift): a Gauss-Newton start ball can be far narrower than the
-    posterior along a parameter (BRFD twin 267 N: d3 at 0.009 of its posterior sd), and a
-    proposal fitted before the ensemble has spread is rejected almost always (measured: 0.9 %
-    acceptance, tau 149 steps, against 20 % and tau 36 with this rule).
-    Returns (positions, proposal.Proposal, steps run); `n_out` positions (default: as many as
-    walkers), drawn like the next round's."""
-    log = log or (lambda msg: None)
-    nw, ndim = state.shape
-    n_draw = max(nw, n_out or nw)
-    proposal, prev, steps = None, -np.inf, 0
-    for rnd in range(max(cfg.burn_rounds, cfg.burn_max_rounds)):
-        bs = emcee.EnsembleSampler(nw, ndim, target, vectorize=True, moves=_moves(cfg, proposal))
-        bs.random_state = np.random.RandomState([seed % (2**32), rnd]).get_state()
-        run_steps(bs, state[:nw], cfg.burn_steps, progress=_progress(cfg), intr=intr)
-        lpc = bs.get_log_prob()
-        new = fit_proposal(bs.get_chain(), lpc)
-        ratio, shift = proposal_change(proposal.spread if proposal else None, new.spread)
-        proposal = new
-        state, stuck = reinitialise(bs.get_chain(), lpc, n_draw, rng)
-        steps += cfg.burn_steps
-        level = float(np.median(lpc[cfg.burn_steps // 2:]))
-        log(f"burn-in round {rnd + 1}: acceptance {np.mean(bs.acceptance_fraction):.2f}, "
-            f"median log-posterior (u) {level:.6g} (best {np.max(lpc):.6g}), "
-            f"{stuck} stuck walkers dropped, proposal width ratio {ratio:.2f}, median shift "
-            f"{shift:.2f} widths")
-        # still climbing (the median walker gained more than the posterior's own spread of the
-        # log density, sqrt(D/2)), walkers stuck, or the ensemble still spreading: another round
-        settled = stuck == 0 and level - prev < np.sqrt(ndim / 2.0) and \
-            ratio <= cfg.burn_stable and shift <= cfg.burn_shift
-        prev = level
-        if rnd + 1 >= cfg.burn_rounds and settled:
-            break
-    return state, proposal, steps
-
-
 def sample(logpost: LogPosterior, scales: RecordScales, seed: int,
            backend_path: str | Path | None = None,
            cfg: SamplerConfig | None = None, resume: bool = True, log=None,
@@ -294,7 +199,7 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
     ndim = sp.ndim
     nw = _nwalkers(cfg, ndim)
     # the stored run's walkers: the burn-in's ensemble, or run_walkers independent chains
-    nrun = cfg.run_walkers * cfg.temperatures if _independent(cfg) else nw
+    nrun = cfg.run_walkers * cfg.temperatures if independent(cfg) else nw
     t0 = time.perf_counter()
     rng = np.random.default_rng(seed)
     target = UnboundedPosterior(logpost, stats=True)
@@ -327,7 +232,7 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
         proposal = load_proposal(backend)
     else:
         store_proposal(backend, proposal)
-    moves = _moves(cfg, proposal, stored=True)
+    moves = moves_for(cfg, proposal, stored=True)
     if cfg.temperatures > 1:
         betas = ladder(cfg.temperatures, cfg.temper_ratio or default_ratio(ndim))
         log("tempered chains: inverse temperatures " + ", ".join(f"{b:.3g}" for b in betas))
@@ -369,25 +274,6 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
     return res
 
 
-def run_steps(sampler, state, n: int, progress=False, intr: Interrupts | None = None):
-    """sampler.run_mcmc(state, n) (state None: from the last stored step); with `intr`, a Ctrl-C
-    stops it between two steps (KeyboardInterrupt), every finished step in the backend."""
-    if state is None:
-        state = sampler.get_last_sample()
-    intr = intr or Interrupts()
-    intr.check()
-    before, intr.defer = intr.defer, True
-    try:
-        for state in sampler.sample(state, iterations=n, progress=progress,
-                                    skip_initial_state_check=True):
-            if intr.hit:
-                break
-    finally:
-        intr.defer = before
-    intr.check()
-    return state
-
-
 def _cold(cfg: SamplerConfig, n_walkers: int) -> slice:
     """The stored run's walkers that sample the posterior: all, or with tempering the first
     run_walkers (level beta = 1; infer.tempering)."""
@@ -401,7 +287,7 @@ def _run(sampler, state, cfg, sp, n_done, history, log, intr=None, moves=()):
     converged = False
     while n_done < cfg.max_steps:
         n = min(cfg.chunk, cfg.max_steps - n_done)
-        run_steps(sampler, state, n, progress=_progress(cfg), intr=intr)
+        run_steps(sampler, state, n, progress=progress_bar(cfg), intr=intr)
         state = None
         n_done = int(sampler.iteration)
         if n_done < cfg.min_steps:
