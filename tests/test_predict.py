@@ -295,7 +295,7 @@ def test_an_input_beyond_the_fitted_records_is_flagged(fit_dir, tmp_path, capsys
     """prediction.json's fitted_range says when the input's stroke or peak speed exceeds the
     fitted records' by more than BEYOND_FACTOR, and the command line notes it; a harmonic inside
     the fitted range is not flagged."""
-    from frictionuq.predict import BEYOND_FACTOR
+    from frictionuq.extrapolation import BEYOND_FACTOR
     inside = write_prediction(fit_dir, tmp_path / "in", harmonic=(AMP, FREQ), applied=0.267, n_draws=20)
     r = inside["fitted_range"]
     assert r["beyond"] == [] and r["stroke_m"] == pytest.approx(AMP, rel=1e-3)

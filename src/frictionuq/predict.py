@@ -42,6 +42,7 @@ from . import atomic, params as P
 from .environment import environment
 from .errors import InputError, check_draws, check_seed
 from .draws import LAW_SOURCE, Draws, choose_draws
+from .extrapolation import warn_about
 from .fitdir import campaign_applied_unit, load_summary, not_converged
 
 QUANTILES = (2.5, 25.0, 50.0, 75.0, 97.5)
@@ -213,7 +214,7 @@ def predict(fit_dir, applied_si: float, t, x, *, eps: float | str = 0.0, n_draws
     fit's setting for this input (fit_drive_lowpass: a clean drive at eps 0 is not filtered),
     a number sets the multiple, None or "off" runs on x itself; the bands keep the given x.
     Warns (errors.ResultWarning) when the draws come from fits that did not converge or the
-    input goes beyond BEYOND_FACTOR times the fitted stroke or peak speed."""
+    input goes beyond extrapolation.BEYOND_FACTOR times the fitted stroke or peak speed."""
     check_draws(n_draws)
     check_seed(seed, "predict")
     if isinstance(eps, str) and eps != "auto":
@@ -247,33 +248,9 @@ def predict(fit_dir, applied_si: float, t, x, *, eps: float | str = 0.0, n_draws
     Fn = add_noise(Fm, draws, float(np.median(np.diff(t))), rng, include_offset,
                    gain=noise_gain(x, draws, eps))
     bounds = cycle_bounds(x, eps, samples_per_cycle)
-    rng_x, rng_a = _warn_about(fit_dir, draws, summary, t, x, applied_si)
+    rng_x, rng_a = warn_about(fit_dir, draws, summary, t, x, applied_si)
     return Prediction(band_table(t, x, Fn, Fm), cycle_table(t, x, Fm, bounds), draws, eps, Fm,
                       rng_x, rng_a)
-
-
-def _warn_about(fit_dir, draws, summary, t, x, applied_si) -> tuple[dict, dict]:
-    """ResultWarning for what the bands rest on (the CLI says the same in its notes); returns
-    the input's fitted_range and the applied force's applied_range."""
-    import warnings
-    from .errors import ResultWarning
-    behind = draws.resting_on(summary)
-    bad = not_converged(summary, behind)
-    if bad:
-        warnings.warn(f"the bands are drawn from fit(s) not converged ({', '.join(bad)}): "
-                      "indicative only", ResultWarning, stacklevel=3)
-    rng = fitted_range(fit_dir, behind, t, x)
-    if rng["beyond"]:
-        warnings.warn(f"the input goes beyond {BEYOND_FACTOR} times the fitted records' "
-                      f"{' and '.join(rng['beyond'])}: the bands extrapolate the model",
-                      ResultWarning, stacklevel=3)
-    ar = applied_range(summary, applied_si)
-    if ar["beyond"]:
-        warnings.warn(f"the applied force {applied_si:g} (SI: N or Pa) lies {ar['side']} the "
-                      f"fitted levels ({', '.join(f'{v:g}' for v in ar['fitted_levels_si'])}) by "
-                      f"more than a factor {BEYOND_FACTOR}: the force-dependence law "
-                      "extrapolates", ResultWarning, stacklevel=3)
-    return rng, ar
 
 
 def fit_drive_lowpass(summary: dict, eps: float) -> float | None:
@@ -291,44 +268,6 @@ def fit_drive_lowpass(summary: dict, eps: float) -> float | None:
 
 
 # ---------------------------------------------------------------- files
-
-
-#: an input whose stroke or peak speed exceeds the fitted records' by more than this factor is
-#: flagged (prediction.json "fitted_range", and a note on the command line): the model's
-#: parameters, v_s and sigma2 above all, are then extrapolated beyond what the data showed
-BEYOND_FACTOR = 1.5
-
-
-def fitted_range(fit_dir, fit_ids, t, x) -> dict:
-    """The input's stroke (largest |x - median x|, m) and peak speed (m/s) beside the largest of
-    the records of the fits its draws come from (fit.json's scales), and which of them go
-    beyond BEYOND_FACTOR times those."""
-    from .fitdir import read_json
-    amp, vmax = 0.0, 0.0
-    for fid in fit_ids:
-        sc = read_json(Path(fit_dir) / fid / "fit.json", f"record of fit {fid}").get("scales") or {}
-        amp, vmax = max(amp, float(sc.get("amp", 0.0))), max(vmax, float(sc.get("v_max", 0.0)))
-    x = np.asarray(x, float)
-    stroke = float(np.max(np.abs(x - np.median(x))))
-    speed = float(np.max(np.abs(np.gradient(x, np.asarray(t, float))))) if x.size > 1 else 0.0
-    beyond = [name for name, v, ref in (("stroke", stroke, amp), ("peak speed", speed, vmax))
-              if ref > 0 and v > BEYOND_FACTOR * ref]
-    return {"stroke_m": stroke, "fitted_stroke_m": amp, "peak_speed_m_s": speed,
-            "fitted_peak_speed_m_s": vmax, "beyond": beyond, "factor": BEYOND_FACTOR}
-
-
-def applied_range(summary: dict, applied_si: float) -> dict:
-    """The applied force beside the fitted levels' (SI): `beyond` when it lies above
-    BEYOND_FACTOR times the highest or below the lowest positive one divided by it, where the
-    force-dependence law extrapolates (a pressure typed in the wrong unit lands there too)."""
-    from .fitdir import fitted_levels
-    levels = fitted_levels(summary)
-    lo = min((a for a in levels if a > 0), default=None)
-    hi = max(levels, default=None)
-    above = bool(levels) and applied_si > BEYOND_FACTOR * hi
-    below = lo is not None and 0 < applied_si < lo / BEYOND_FACTOR
-    return {"applied_si": float(applied_si), "fitted_levels_si": levels, "beyond": above or below,
-            "side": "above" if above else "below" if below else None, "factor": BEYOND_FACTOR}
 
 
 def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied: float,
