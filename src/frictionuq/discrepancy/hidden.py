@@ -101,6 +101,21 @@ _DRAWN_WHEN_HIDDEN = {
 }
 
 
+#: zeros=True: each test's load-cell zero a uniform draw in +-ZERO_REL of Fc (the real ARTS
+#: levels: mean residuals spread by 0.4-1.2 kN at friction forces of 5-11 kN), with the zeros'
+#: range at least ZERO_MIN_RANGE of Fc (the draw repeated until it is), three times the noise sd
+ZERO_REL = 0.05
+ZERO_MIN_RANGE = 0.03
+
+
+def draw_zeros(test_ids, fc: float, rng) -> dict:
+    """{force_offset[TEST]: zero (N)} of the tests of a campaign with zeros=True (ZERO_REL)."""
+    while True:
+        z = rng.uniform(-ZERO_REL, ZERO_REL, len(test_ids)) * fc
+        if np.ptp(z) >= ZERO_MIN_RANGE * fc:
+            return {f"force_offset[{t}]": float(v) for t, v in zip(test_ids, z)}
+
+
 CHATTER_FORMS = ("window", "bursts")
 
 
@@ -157,7 +172,7 @@ def hidden_campaign(out_dir, device: str, effect: str | None, seed: int,
                     answer_path=None, short: bool = False, eq_seconds: float = SHORT_EQ_SECONDS,
                     eq_from: str = "strong", ramp: bool = False,
                     ramp_start: float = RAMP_START, also: str | None = None,
-                    chatter_form: str = "window") -> dict:
+                    chatter_form: str = "window", zeros: bool = False) -> dict:
     """Write a 3-test campaign with `effect` hidden (None: no effect) to out_dir; returns the
     answer {effect, parameters, noise_sd_N, ...} (also written to answer_path if given).
     short: 4 cycles per harmonic and `eq_seconds` of the ground motion, from its strong motion
@@ -171,7 +186,9 @@ def hidden_campaign(out_dir, device: str, effect: str | None, seed: int,
     chatter_form: "window" (the model's own form) or "bursts" (stick_slip_bursts; its
     parameters from their own random stream, after the window form's are drawn and unused, so
     the campaign's AR(1) noise is that of the window form's campaign of the same seed; the
-    answer's "chatter" entry then holds the bursts' parameters, which the model does not have)."""
+    answer's "chatter" entry then holds the bursts' parameters, which the model does not have).
+    zeros: each test's force also carries a load-cell zero of its own (draw_zeros; the answer's
+    "test_zeros", {force_offset[TEST]: N}), which no effect models: the zero moved between tests."""
     if eq_from not in ("strong", "start"):
         raise ValueError(f"hidden_campaign: eq_from must be 'strong' or 'start', got {eq_from!r}")
     if chatter_form not in CHATTER_FORMS:
@@ -210,6 +227,10 @@ def hidden_campaign(out_dir, device: str, effect: str | None, seed: int,
         if also == effect or effect is None:
             raise ValueError(f"hidden_campaign: also={also!r} needs a different first effect")
         effects[also] = draw_effect(also, np.random.default_rng([seed, 4243]), amp, v_max, e_ref)
+    # each test's own load-cell zero, from a stream of its own: the campaign of the same seed
+    # without them plus a constant per test
+    test_zeros = draw_zeros([d[0] for d in drives], fc, np.random.default_rng([seed, 4245])) \
+        if zeros else None
     noise_effects = [e for e in effects if e in NOISE_EFFECTS]
     sd = NOISE_REL_SD * fc
     burst_rng, model_effects = None, effects
@@ -233,7 +254,7 @@ def hidden_campaign(out_dir, device: str, effect: str | None, seed: int,
             noise = noise * chatter_gain(since_reversal(x), *args)[0]
         if burst_rng is not None:
             noise = noise + stick_slip_bursts(t, x, p["d2"] + p["d3"], effects["chatter"], burst_rng)
-        y = F + noise
+        y = F + noise + (test_zeros[f"force_offset[{tid}]"] if test_zeros else 0.0)
         a_out = measured if unit_applied == "N" else measured / 6894.757293168
         body = "time,displacement,force,applied\n" + "".join(
             f"{a:.6f},{b:.9g},{c:.6f},{d:.6f}\n" for a, b, c, d in zip(t, x, y, a_out))
@@ -248,6 +269,7 @@ def hidden_campaign(out_dir, device: str, effect: str | None, seed: int,
     answer = {"device": device, "effect": effect or "none", "parameters": eff_p,
               "effects": effects, "seed": seed,
               **({"chatter_form": chatter_form} if "chatter" in effects else {}),
+              **({"test_zeros": test_zeros} if test_zeros else {}),
               "noise_sd_N": sd, "noise_phi": NOISE_PHI, "applied": level,
               "applied_unit": unit_applied, "tests": tests}
     if answer_path is not None:

@@ -38,6 +38,20 @@ def build(ctx, folder=None) -> list[dict]:
             "closes is in the held-out log-likelihood (the candidates' table) and in the bands, "
             "which widen in the window; the residual diagnostics of the model with it use the "
             "residual divided by its noise gain."))
+    for b in d.get("between_tests", []):
+        out.append(B.para(
+            f"Level {b['level']}: " + (
+                f"the tests do not share one force zero: their mean residuals about the baseline's "
+                f"zero spread by {num(b['spread_N'])} N where its noise allows "
+                f"{num(min(b['se_N'].values()))}-{num(max(b['se_N'].values()))} N per test "
+                f"(chi-square {num(b['chi2'])} on {b['df']} degrees of freedom, p = "
+                f"{b['p_value']:.2g} at {100 * b['alpha']:g} %). No effect of the library moves a "
+                "test's zero; fitting with each test's own (--force-offset per_test, or a "
+                "workflow's [fit] force_offset = \"per_test\") models it, and the per-test table "
+                "below gives each test's mean residual."
+                if b["significant"] else
+                f"the tests share one force zero within the noise (between-tests check, p = "
+                f"{b['p_value']:.2g}).")))
     out.append(_candidates(d["candidates"], "candidates, ranked" + (
         " (round 1, against the plain 3-stage model)" if len(d.get("rounds", [])) > 1 else "")))
     for r in d.get("rounds", [])[1:]:
@@ -85,9 +99,10 @@ def gap_blocks(folder, d: dict) -> list[dict]:
     out = []
     diags = d.get("diagnostics", [])
     rows = [(g["test"], g["model"], num(g["rmse"]) if "rmse" in g else "-",
+             num(g["mean_residual"]) if "mean_residual" in g else "-",
              ", ".join(g["significant_views"]) or "none") for g in diags]
     if rows:
-        out.append(B.html(table(["test", "model", "RMSE at its MAP (N)",
+        out.append(B.html(table(["test", "model", "RMSE at its MAP (N)", "mean residual (N)",
                                  "views with significant structure (Holm, 1 %)"],
                                 rows, caption="the gap before and after, per test")))
     comb = d.get("combined_diagnostics", [])
