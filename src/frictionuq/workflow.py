@@ -49,6 +49,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import InputError
+from .tomlcheck import Checker
 
 NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]*$")
 MODELS = ("three_stage", "lugre")
@@ -118,74 +119,7 @@ class Workflow:
                          seed=self.seed)
 
 
-class _Checker:
-    """Typed getters that name the file and the key in every error."""
-
-    def __init__(self, path: Path):
-        self.path = path
-
-    def fail(self, key: str, problem: str):
-        raise InputError(f"{self.path}: {key}: {problem}")
-
-    def table(self, doc: dict, key: str) -> dict:
-        v = doc.get(key, {})
-        if not isinstance(v, dict):
-            self.fail(f"[{key}]", f"must be a table, got {type(v).__name__}")
-        return v
-
-    def unknown(self, table: dict, allowed, where: str) -> None:
-        extra = sorted(set(table) - set(allowed))
-        if extra:
-            self.fail(f"{where}.{extra[0]}" if where else extra[0],
-                      f"unknown key; allowed: {', '.join(sorted(allowed))}")
-
-    def str_(self, t, key, where, default=None, choices=None, required=False):
-        if key not in t:
-            if required:
-                self.fail(f"{where}.{key}", "missing (required)")
-            return default
-        v = t[key]
-        if not isinstance(v, str) or not v:
-            self.fail(f"{where}.{key}", f"must be a non-empty string, got {v!r}")
-        if choices and v not in choices:
-            self.fail(f"{where}.{key}", f"must be one of {', '.join(choices)}, got {v!r}")
-        return v
-
-    def bool_(self, t, key, where, default):
-        v = t.get(key, default)
-        if not isinstance(v, bool):
-            self.fail(f"{where}.{key}", f"must be true or false, got {v!r}")
-        return v
-
-    def num(self, t, key, where, default=None, integer=False, minimum=None, positive=False,
-            required=False):
-        if key not in t:
-            if required:
-                self.fail(f"{where}.{key}", "missing (required)")
-            return default
-        v = t[key]
-        ok = isinstance(v, int) if integer else isinstance(v, (int, float))
-        if isinstance(v, bool) or not ok or not math.isfinite(v):
-            self.fail(f"{where}.{key}", f"must be {'an integer' if integer else 'a number'}, got {v!r}")
-        if positive and not v > 0:
-            self.fail(f"{where}.{key}", f"must be > 0, got {v!r}")
-        if minimum is not None and v < minimum:
-            self.fail(f"{where}.{key}", f"must be >= {minimum}, got {v!r}")
-        return v
-
-    def strings(self, t, key, where, choices=None):
-        v = t.get(key, [])
-        if not isinstance(v, list) or not all(isinstance(s, str) and s for s in v):
-            self.fail(f"{where}.{key}", f"must be a list of strings, got {v!r}")
-        for s in v:
-            if choices and s not in choices:
-                self.fail(f"{where}.{key}", f"{s!r} is not one of {', '.join(choices)}")
-        if len(set(v)) != len(v):
-            self.fail(f"{where}.{key}", "lists an entry twice")
-        return list(v)
-
-
-def _sampler(c: _Checker, t: dict, where: str) -> dict:
+def _sampler(c: Checker, t: dict, where: str) -> dict:
     from .infer.sampler import STORED_RUNS, SamplerConfig
     if not isinstance(t, dict):
         c.fail(where, "must be a table of sampler settings")
@@ -216,7 +150,7 @@ def _sampler(c: _Checker, t: dict, where: str) -> dict:
     return out
 
 
-def _priors(c: _Checker, t, where: str) -> dict:
+def _priors(c: Checker, t, where: str) -> dict:
     from .infer.fit import _check_noise_overrides
     from .infer.priors import apply_overrides
     if not isinstance(t, dict):
@@ -229,7 +163,7 @@ def _priors(c: _Checker, t, where: str) -> dict:
     return dict(t)
 
 
-def _fit(c: _Checker, t: dict) -> dict:
+def _fit(c: Checker, t: dict) -> dict:
     from . import params as P
     w = "[fit]"
     c.unknown(t, SECTIONS["fit"], "fit")
@@ -260,7 +194,7 @@ def _fit(c: _Checker, t: dict) -> dict:
             "sampler": _sampler(c, t.get("sampler", {}), "[fit.sampler]")}
 
 
-def _entries(c: _Checker, t: dict, key: str, allowed: set, where: str) -> list[dict]:
+def _entries(c: Checker, t: dict, key: str, allowed: set, where: str) -> list[dict]:
     v = t.get(key, [])
     if not isinstance(v, list) or not all(isinstance(e, dict) for e in v):
         c.fail(f"{where}.{key}", "must be an array of tables ([[predict.%s]])" % key)
@@ -269,7 +203,7 @@ def _entries(c: _Checker, t: dict, key: str, allowed: set, where: str) -> list[d
     return v
 
 
-def _ground_source(c: _Checker, e: dict, wh: str, base: Path) -> dict:
+def _ground_source(c: Checker, e: dict, wh: str, base: Path) -> dict:
     """A ground motion's source: a shipped record's key, or the user's own accelerogram file
     (resolved against the workflow's folder and read now, so that a bad file is refused before
     any work)."""
@@ -300,7 +234,7 @@ def _ground_source(c: _Checker, e: dict, wh: str, base: Path) -> dict:
     return src
 
 
-def _predict(c: _Checker, t: dict, base: Path) -> dict:
+def _predict(c: Checker, t: dict, base: Path) -> dict:
     w = "[predict]"
     c.unknown(t, SECTIONS["predict"], "predict")
     out = {"n_draws": c.num(t, "n_draws", w, 400, integer=True, minimum=2),
@@ -335,7 +269,7 @@ def _predict(c: _Checker, t: dict, base: Path) -> dict:
     return out
 
 
-def _compare(c: _Checker, t: dict) -> dict:
+def _compare(c: Checker, t: dict) -> dict:
     w = "[compare]"
     c.unknown(t, SECTIONS["compare"], "compare")
     models = c.strings(t, "models", w, MODELS) if "models" in t else list(MODELS)
@@ -357,7 +291,7 @@ def load_workflow(path) -> Workflow:
         doc = tomllib.loads(raw.decode("utf-8"))
     except (UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
         raise InputError(f"{path}: not valid TOML ({e})") from None
-    c = _Checker(path)
+    c = Checker(path)
     c.unknown(doc, SECTIONS, "")
     tables = {s: c.table(doc, s) for s in SECTIONS}
     t = tables["workflow"]
