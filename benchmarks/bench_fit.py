@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/bench_fit.py [--case twin|arts-d1|all] [--simulate-at raw|kept|both]
         [--sampler chains|ensemble|both] [--jobs 1|2|both] [--max-steps N] [--tests ID ...]
-        [--force-offset shared|per_test] [--temperatures L] [--out DIR]
+        [--force-offset shared|per_test] [--temperatures L] [--samples-per-cycle N] [--out DIR]
 
 Cases:
   * `twin`     one applied force of the BRFD twin (data/brfd-twin, 267 N, all its tests: four
@@ -29,6 +29,8 @@ out (per_test: FitConfig.force_offset).
 --temperatures: parallel tempering of the stored run's chains with L levels (SamplerConfig.
 temperatures; 1, the default: none); with --sampler chains only (the ensemble's DE moves are
 not tempered).
+--samples-per-cycle: the decimation's kept rate as a multiple of each test's frequency
+(FitConfig.samples_per_cycle; default the CLI's 400; workflows/brfd-arts.toml uses 150).
 Targets: under 2 minutes for the twin force level, under 10 minutes for all of brfd-arts-d1, on
 the 2-core machine. Run it on a quiet machine; the figures are in the README
 (current) and docs/log-calibration.md (every run).
@@ -60,19 +62,29 @@ SAMPLERS = {"chains": {},
             "ensemble": {"stored_run": "ensemble", "independence_weight": 0.5, "start_profile": False}}
 
 
+def run_name(case: str, simulate_at: str, sampler: str, jobs: int, force_offset: str,
+             temperatures: int = 1, samples_per_cycle: float | None = None) -> str:
+    """The folder of one benchmark fit under --out: every option that changes the fit in it."""
+    return (f"{case}-{simulate_at}-{sampler}-j{jobs}-{force_offset}"
+            + (f"-T{temperatures}" if temperatures > 1 else "")
+            + (f"-spc{samples_per_cycle:g}" if samples_per_cycle else ""))
+
+
 def run(case: str, out: Path, simulate_at: str = "raw", sampler: str = "chains",
         tests=None, jobs: int = 1, max_steps: int | None = None,
-        force_offset: str = "shared", temperatures: int = 1) -> dict:
+        force_offset: str = "shared", temperatures: int = 1,
+        samples_per_cycle: float | None = None) -> dict:
     path, sel, target = CASES[case]
     caps = {"max_steps": max_steps} if max_steps else {}
     if temperatures > 1:
         caps["temperatures"] = temperatures
     cfg = FitConfig(tests=tuple(tests) if tests else sel.get("tests"), simulate_at=simulate_at,
                     sampler=SamplerConfig(progress=False, **SAMPLERS[sampler], **caps),
-                    force_offset=force_offset)
+                    force_offset=force_offset,
+                    **({"samples_per_cycle": samples_per_cycle} if samples_per_cycle else {}))
     t0 = time.perf_counter()
-    s = fit_campaign(path, out / f"{case}-{simulate_at}-{sampler}-j{jobs}-{force_offset}"
-                     + (f"-T{temperatures}" if temperatures > 1 else ""),
+    s = fit_campaign(path, out / run_name(case, simulate_at, sampler, jobs, force_offset,
+                                          temperatures, samples_per_cycle),
                      by="applied",
                      config=cfg, jobs=jobs)
     wall = time.perf_counter() - t0
@@ -84,7 +96,8 @@ def run(case: str, out: Path, simulate_at: str = "raw", sampler: str = "chains",
         rows.append((f["id"], f["seconds"], f["model_evaluations"], ess, rhat, f["converged"],
                      f["sampler_steps"], f["tau_max"]))
     tag = ("" if force_offset == "shared" else f", {force_offset} offsets") + \
-        ("" if temperatures == 1 else f", T{temperatures}")
+        ("" if temperatures == 1 else f", T{temperatures}") + \
+        (f", {samples_per_cycle:g} per cycle" if samples_per_cycle else "")
     return {"case": f"{case} ({simulate_at}, {sampler}, j{jobs}{tag})", "wall": wall, "target": target,
             "rows": rows}
 
@@ -102,6 +115,8 @@ def main(argv=None):
                     help="one load-cell zero per fit (default) or each test's own")
     ap.add_argument("--temperatures", type=int, default=1,
                     help="parallel tempering levels of the stored run's chains (1: none)")
+    ap.add_argument("--samples-per-cycle", type=float, default=None,
+                    help="the decimation's kept samples per cycle (default: FitConfig's, 400)")
     ap.add_argument("--out", default=None, help="keep the fit outputs here (default: temporary)")
     a = ap.parse_args(argv)
     if a.temperatures > 1 and a.sampler != "chains":
@@ -114,7 +129,8 @@ def main(argv=None):
         ats = ["raw", "kept"] if a.simulate_at == "both" else [a.simulate_at]
         sms = ["ensemble", "chains"] if a.sampler == "both" else [a.sampler]
         jbs = [1, 2] if a.jobs == "both" else [int(a.jobs)]
-        results = [run(c, out, at, sm, a.tests, j, a.max_steps, a.force_offset, a.temperatures)
+        results = [run(c, out, at, sm, a.tests, j, a.max_steps, a.force_offset, a.temperatures,
+                       a.samples_per_cycle)
                    for c in cases for at in ats for sm in sms for j in jbs]
     print(f"{'fit':<42}{'wall s':>8}{'evals':>10}{'evals/s':>9}{'steps':>8}{'tau':>7}"
           f"{'ESS min':>9}{'R-hat':>7}{'ESS/s':>7}  converged")
@@ -126,7 +142,8 @@ def main(argv=None):
               f"{'met' if r['wall'] <= r['target'] else 'NOT met'}, ratio {r['wall'] / r['target']:.2f})")
     w = {r["case"]: r["wall"] for r in results}
     tag = ("" if a.force_offset == "shared" else f", {a.force_offset} offsets") + \
-        ("" if a.temperatures == 1 else f", T{a.temperatures}")
+        ("" if a.temperatures == 1 else f", T{a.temperatures}") + \
+        (f", {a.samples_per_cycle:g} per cycle" if a.samples_per_cycle else "")
     for c in cases:
         for j in jbs:
             for sm in sms if a.simulate_at == "both" else []:

@@ -1,0 +1,30 @@
+"""benchmarks/bench_fit.py's own code that runs before any fit: the output folder of each
+configuration (a Path joined with a str; a9b5461 to this test's commit built Path + str, which
+failed on every run before the first fit started)."""
+from __future__ import annotations
+
+import importlib.util
+from itertools import product
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _bench_fit():
+    spec = importlib.util.spec_from_file_location("bench_fit", ROOT / "benchmarks" / "bench_fit.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_every_configuration_gets_its_own_folder(tmp_path):
+    bf = _bench_fit()
+    names = set()
+    for combo in product(["twin", "arts-d1"], ["raw", "kept"], ["chains", "ensemble"], [1, 2],
+                         ["shared", "per_test"], [1, 3], [None, 150.0]):
+        name = bf.run_name(*combo)
+        folder = tmp_path / name
+        assert folder.parent == tmp_path and "/" not in name
+        names.add(name)
+    assert len(names) == 2 ** 7
+    assert bf.run_name("arts-d1", "raw", "chains", 1, "shared", 1, 150.0).endswith("-spc150")
