@@ -70,6 +70,14 @@ def run_name(case: str, simulate_at: str, sampler: str, jobs: int, force_offset:
             + (f"-spc{samples_per_cycle:g}" if samples_per_cycle else ""))
 
 
+def run_tag(force_offset: str, temperatures: int = 1,
+            samples_per_cycle: float | None = None) -> str:
+    """The printed label's options beyond the defaults (the rows' and the ratios' keys)."""
+    return (("" if force_offset == "shared" else f", {force_offset} offsets")
+            + ("" if temperatures == 1 else f", T{temperatures}")
+            + (f", {samples_per_cycle:g} per cycle" if samples_per_cycle else ""))
+
+
 def run(case: str, out: Path, simulate_at: str = "raw", sampler: str = "chains",
         tests=None, jobs: int = 1, max_steps: int | None = None,
         force_offset: str = "shared", temperatures: int = 1,
@@ -95,9 +103,7 @@ def run(case: str, out: Path, simulate_at: str = "raw", sampler: str = "chains",
         rhat = max(p["r_hat"] for p in free.values())
         rows.append((f["id"], f["seconds"], f["model_evaluations"], ess, rhat, f["converged"],
                      f["sampler_steps"], f["tau_max"]))
-    tag = ("" if force_offset == "shared" else f", {force_offset} offsets") + \
-        ("" if temperatures == 1 else f", T{temperatures}") + \
-        (f", {samples_per_cycle:g} per cycle" if samples_per_cycle else "")
+    tag = run_tag(force_offset, temperatures, samples_per_cycle)
     return {"case": f"{case} ({simulate_at}, {sampler}, j{jobs}{tag})", "wall": wall, "target": target,
             "rows": rows}
 
@@ -141,9 +147,7 @@ def main(argv=None):
         print(f"{r['case']:<42}{r['wall']:8.0f} s in all (target {r['target']:.0f} s: "
               f"{'met' if r['wall'] <= r['target'] else 'NOT met'}, ratio {r['wall'] / r['target']:.2f})")
     w = {r["case"]: r["wall"] for r in results}
-    tag = ("" if a.force_offset == "shared" else f", {a.force_offset} offsets") + \
-        ("" if a.temperatures == 1 else f", T{a.temperatures}") + \
-        (f", {a.samples_per_cycle:g} per cycle" if a.samples_per_cycle else "")
+    tag = run_tag(a.force_offset, a.temperatures, a.samples_per_cycle)
     for c in cases:
         for j in jbs:
             for sm in sms if a.simulate_at == "both" else []:

@@ -1,6 +1,6 @@
 """benchmarks/bench_fit.py's own code that runs before any fit: the output folder of each
-configuration (a Path joined with a str; a9b5461 to this test's commit built Path + str, which
-failed on every run before the first fit started)."""
+configuration. From a9b5461 until this test came, the folder was built as Path + str, a TypeError
+on every run before its first fit."""
 from __future__ import annotations
 
 import importlib.util
