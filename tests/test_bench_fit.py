@@ -28,3 +28,12 @@ def test_every_configuration_gets_its_own_folder(tmp_path):
         names.add(name)
     assert len(names) == 2 ** 7
     assert bf.run_name("arts-d1", "raw", "chains", 1, "shared", 1, 150.0).endswith("-spc150")
+
+
+def test_the_target_is_met_only_when_every_fit_converged_in_time():
+    bf = _bench_fit()
+    row = ("applied-267N", 30.0, 1000, 500.0, 1.005, True, 1500, 10.0)
+    fast_unconverged = {"wall": 34.0, "target": 120.0, "rows": [row[:5] + (False,) + row[6:]]}
+    assert bf.target_verdict(fast_unconverged) == "NOT met (0 of 1 fits converged)"
+    assert bf.target_verdict({"wall": 34.0, "target": 120.0, "rows": [row]}) == "met"
+    assert bf.target_verdict({"wall": 130.0, "target": 120.0, "rows": [row]}) == "NOT met"
