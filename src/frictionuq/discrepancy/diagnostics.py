@@ -86,6 +86,8 @@ import numpy as np
 
 from . import chatter as C
 from .features import FEATURE_UNITS, features as compute_features
+from .nullperm import (Spectrum, accumulate, autocorrelation_length, permutation_chunks, row_bincount, stat,
+                       trend_basis, trend_stat)
 
 VIEW_ORDER = ("displacement", "velocity", "time", "cycle", "since_reversal", "energy", "applied")
 #: views tested with the smooth-trend statistic (module docstring: "Drift views")
@@ -141,33 +143,6 @@ def _fl(a):
     return [_f(v) for v in np.asarray(a, dtype=float)]
 
 
-def autocorrelation_length(r) -> float:
-    """2 x the first lag (samples) at which the sample autocorrelation of r drops below 1/e."""
-    r = np.asarray(r, dtype=float) - np.mean(r)
-    n = r.size
-    spec = np.fft.rfft(r, 2 * n)
-    acf = np.fft.irfft(spec * spec.conj(), 2 * n)[:n]
-    if acf[0] <= 0:
-        return 1.0
-    below = np.flatnonzero(acf / acf[0] < 1.0 / np.e)
-    return 2.0 * float(below[0] if below.size else n)
-
-
-def block_permutation(n: int, block: float, rng) -> np.ndarray:
-    """Index array: 0..n-1 cut at round(n/block) - 1 random points, the blocks randomly reordered."""
-    if block <= 1:
-        return rng.permutation(n)
-    k = max(1, int(round(n / block)))
-    if k == 1:
-        return np.arange(n)
-    cuts = np.sort(rng.choice(np.arange(1, n), k - 1, replace=False))
-    starts = np.concatenate(([0], cuts))
-    lengths = np.diff(np.concatenate((starts, [n])))
-    order = rng.permutation(k)
-    out_start = np.concatenate(([0], np.cumsum(lengths[order])[:-1]))
-    return np.arange(n) + np.repeat(starts[order] - out_start, lengths[order])
-
-
 def _bins(f: np.ndarray, n_bins: int, integer: bool):
     if integer:
         _, idx = np.unique(f, return_inverse=True)
@@ -175,58 +150,6 @@ def _bins(f: np.ndarray, n_bins: int, integer: bool):
         edges = np.unique(np.quantile(f, np.linspace(0.0, 1.0, n_bins + 1)))
         idx = np.searchsorted(edges[1:-1], f, side="right")
     return idx.astype(np.int64), int(idx.max()) + 1
-
-
-def _stat(S, n_c, n_d, ss):
-    """Partial correlation ratio from cell sums S (..., 2B) (cell 2b+1: d=+1, 2b: d=-1)."""
-    with np.errstate(invalid="ignore", divide="ignore"):
-        cells = np.where(n_c > 0, S * S / n_c, 0.0).sum(-1)
-        Sd = np.stack([S[..., 0::2].sum(-1), S[..., 1::2].sum(-1)], -1)
-        dirs = np.where(n_d > 0, Sd * Sd / n_d, 0.0).sum(-1)
-    return (cells - dirs) / ss
-
-
-class _Spectrum:
-    """Grid, band and detrending of the position-locked spectrum; one profile per direction."""
-
-    def __init__(self, x, up, n_grid):
-        lo, hi = float(x.min()), float(x.max())
-        self.range, self.n_grid = hi - lo, n_grid
-        self.step = self.range / n_grid if hi > lo else 1.0
-        self.idx = np.minimum(((x - lo) / self.step).astype(np.int64), n_grid - 1) + n_grid * up
-        self.counts = np.bincount(self.idx, minlength=2 * n_grid).astype(float).reshape(2, n_grid)
-        self.dirs = [i for i in (0, 1) if (self.counts[i] > 0).sum() >= 16]
-        self.centres = lo + (np.arange(n_grid) + 0.5) * self.step
-        self.nfft = PAD * n_grid
-        k = np.fft.rfftfreq(self.nfft, self.step)
-        self.band = (k >= 2.0 / max(self.range, 1e-300)) & (k <= 1.0 / (4.0 * self.step))
-        self.k = k[self.band]
-        A = np.stack([np.ones(n_grid), self.centres - self.centres.mean()], 1)
-        self.detrend = np.eye(n_grid) - A @ np.linalg.pinv(A)
-        self.window = np.hanning(n_grid)
-        self.ok = self.range > 0 and bool(self.dirs) and self.band.sum() >= 4
-
-    def power(self, dr):
-        sums = np.bincount(self.idx, weights=dr, minlength=2 * self.n_grid).reshape(2, self.n_grid)
-        out = 0.0
-        for i in self.dirs:
-            f = self.counts[i] > 0
-            prof = np.interp(self.centres, self.centres[f], sums[i, f] / self.counts[i, f])
-            out = out + np.abs(np.fft.rfft(self.window * (self.detrend @ prof), self.nfft))[self.band] ** 2
-        return out
-
-
-def _trend_basis(f: np.ndarray, up: np.ndarray) -> np.ndarray:
-    """Orthonormal columns (n, 2 TREND_DEGREE): polynomials of degree 1..TREND_DEGREE in the
-    standardised feature, separately per direction, orthogonal to the two direction means."""
-    z = (f - f.mean()) / (f.std() or 1.0)
-    P = np.stack([z**k for k in range(1, TREND_DEGREE + 1)], 1)
-    cols = [P * (up == 1)[:, None], P * (up == 0)[:, None]]
-    X = np.concatenate([np.stack([(up == 1), (up == 0)], 1).astype(float)] + cols, 1)
-    Q, R = np.linalg.qr(X)
-    keep = np.abs(np.diag(R)) > 1e-10 * np.abs(np.diag(R)).max()
-    keep[:2] = False                  # the direction means: not structure (as in T)
-    return Q[:, keep]
 
 
 def holm(p: dict) -> dict:
@@ -260,6 +183,28 @@ def _view_result(name, s, obs, tn, acc, n_perm, ss, n):
            "test": "binned" if binned is None else f"trend (degree {TREND_DEGREE} per direction)"}
     if binned is not None:
         out["statistic_binned"] = _f(binned)
+    return out
+
+
+def _evaluate(R, H, setup, burst, spec, d, sp, n_d, ss) -> dict:
+    """Every statistic of diagnose on the residual rows R (m, n) (observed, or permuted copies),
+    with H (m, n) the high-passed rows for the bursts: {"views": {name: (T, S, mean of d*r,
+    mean of d*z or None, trend statistic or None)}, "burst": (T, bin means of h), "spectrum": P}."""
+    out = {"views": {}}
+    if burst is not None:
+        h = C.power(H, *burst["lock"])
+        out["burst"] = (stat(row_bincount(burst["cell"], h, 2 * burst["nb"]), burst["n_c"], n_d, burst["ss"]),
+                        row_bincount(burst["b"], h, burst["nb"]) / burst["n_b"])
+    dz = None if sp is None else d * R / sp
+    for name, s in setup.items():
+        S = row_bincount(s["cell"], R, 2 * s["nb"])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mb = (S[:, 1::2] - S[:, 0::2]) / s["n_b"]
+            mz = None if dz is None else row_bincount(s["bin"], dz, s["nb"]) / s["n_b"]
+        Tt = trend_stat(s["trend"], R, ss) if "trend" in s else None
+        out["views"][name] = (stat(S, s["n_c"], n_d, ss), S, mb, mz, Tt)
+    if spec.ok:
+        out["spectrum"] = spec.power(d * R)
     return out
 
 
@@ -306,8 +251,8 @@ def diagnose(t, x, resid, spread=None, features=None, alpha: float = 0.01, n_per
             setup[name] = dict(bin=b, nb=nb, cell=cell, n_c=np.bincount(cell, minlength=2 * nb).astype(float),
                                n_b=np.bincount(b, minlength=nb).astype(float), f=f)
             if name in TREND_VIEWS:
-                setup[name].update(trend=_trend_basis(f, up), trend_null=np.empty(n_perm))
-    spec = _Spectrum(x, up, n_grid)
+                setup[name].update(trend=trend_basis(f, up, TREND_DEGREE), trend_null=np.empty(n_perm))
+    spec = Spectrum(x, up, n_grid, PAD)
     burst = None        # high-frequency bursts against since_reversal (chatter.py)
     if bursts and "since_reversal" in feats and t is not None:
         s_rev = np.asarray(feats["since_reversal"], dtype=float)
@@ -327,45 +272,32 @@ def diagnose(t, x, resid, spread=None, features=None, alpha: float = 0.01, n_per
     rng = np.random.default_rng(seed)
     T_null = {name: np.empty(n_perm) for name in setup}
     acc = {name: np.zeros((4, s["nb"])) for name, s in setup.items()}   # sum, sum^2 of d*r and d*z
-    P_null, obs = (np.empty((n_perm, spec.k.size)) if spec.ok else None), {}
-    for p in range(-1, n_perm):                     # p = -1: the observed residual
-        perm = None if p < 0 else block_permutation(n, block, rng)
-        rp = r if perm is None else rc[perm]
+    P_null = np.empty((n_perm, spec.k.size)) if spec.ok else None
+    # the observed residual (one row), then the permuted copies a chunk of rows at a time
+    # (nullperm: the same numbers as one copy at a time)
+    res = _evaluate(r[None, :], None if burst is None else burst["hp"][None, :], setup, burst, spec, d, sp, n_d, ss)
+    obs = {name: (T[0], S[0], mb[0], None if mz is None else mz[0]) for name, (T, S, mb, mz, _) in res["views"].items()}
+    for name, (*_, Tt) in res["views"].items():
+        if Tt is not None:
+            setup[name]["trend_obs"] = float(Tt[0])
+    if burst is not None:
+        burst["obs"] = res["burst"][0][0]
+    if spec.ok:
+        P_obs = res["spectrum"][0]
+    for start, perms in permutation_chunks(n, block, rng, n_perm):
+        rows = slice(start, start + perms.shape[0])
+        res = _evaluate(rc[perms], None if burst is None else burst["hp"][perms], setup, burst, spec, d, sp, n_d, ss)
         if burst is not None:
-            hp_ = burst["h"] if perm is None else C.power(burst["hp"][perm], *burst["lock"])
-            Th = _stat(np.bincount(burst["cell"], weights=hp_, minlength=2 * burst["nb"]),
-                       burst["n_c"], n_d, burst["ss"])
-            if p < 0:
-                burst["obs"] = Th
-            else:
-                burst["null"][p] = Th
-                burst["null_bins"][p] = np.bincount(burst["b"], weights=hp_, minlength=burst["nb"]) / burst["n_b"]
-        dz = None if sp is None else d * rp / sp
-        for name, s in setup.items():
-            S = np.bincount(s["cell"], weights=rp, minlength=2 * s["nb"])
-            T = _stat(S, s["n_c"], n_d, ss)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                mb = (S[1::2] - S[0::2]) / s["n_b"]
-                mz = None if dz is None else np.bincount(s["bin"], weights=dz, minlength=s["nb"]) / s["n_b"]
-            if "trend" in s:
-                Tt = float(np.sum((s["trend"].T @ rp) ** 2)) / ss
-                if p < 0:
-                    s["trend_obs"] = Tt
-                else:
-                    s["trend_null"][p] = Tt
-            if p < 0:
-                obs[name] = (T, S, mb, mz)
-                continue
-            T_null[name][p] = T
-            acc[name][:2] += mb, mb * mb
+            burst["null"][rows], burst["null_bins"][rows] = res["burst"]
+        for name, (T, S, mb, mz, Tt) in res["views"].items():
+            T_null[name][rows] = T
+            if Tt is not None:
+                setup[name]["trend_null"][rows] = Tt
+            acc[name][0], acc[name][1] = accumulate(acc[name][0], mb), accumulate(acc[name][1], mb * mb)
             if mz is not None:
-                acc[name][2:] += mz, mz * mz
+                acc[name][2], acc[name][3] = accumulate(acc[name][2], mz), accumulate(acc[name][3], mz * mz)
         if spec.ok:
-            P = spec.power(d * rp)
-            if p < 0:
-                P_obs = P
-            else:
-                P_null[p] = P
+            P_null[rows] = res["spectrum"]
 
     out_views = {name: _view_result(name, s, obs[name], T_null[name], acc[name], n_perm, ss, n)
                  for name, s in setup.items()}
