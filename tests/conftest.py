@@ -24,15 +24,21 @@ from pathlib import Path
 
 import pytest
 
-#: the test files with the most work (seconds on one worker in the CI run of 2026-11-26 night:
-#: 665, 575, about 200, 80, 60, 50), run first. xdist's loadfile scheduler hands out whole files
-#: in collection order and by default reorders them by their number of tests, which put these
-#: few-test files last, where two of them ran side by side at the end of the run; with them
-#: first (and --no-loadscope-reorder in pyproject's addopts) the many short files fill in
-#: behind them (longest first, the classic rule for balancing two workers).
+#: the test files with the most work, longest first (seconds summed over each file's tests in the
+#: CI run of 2026-12-03 night, --durations=150: 592, 480, 226, 165, 105, 72, 71, 58, 49, 89 before
+#: nullperm.py halved it, 41, 40, 65 before nullperm.py, 28, 26, 24; every other file under 17 s).
+#: xdist's loadfile scheduler hands out whole files in collection order and by default reorders
+#: them by their number of tests, which put the few-test discover files last, where two of them
+#: ran side by side at the end of the run; with these first (and --no-loadscope-reorder in
+#: pyproject's addopts) the many short files fill in behind them (longest first, the classic rule
+#: for balancing two workers). With only the first six listed, one worker sat idle for the last
+#: 65 s of the CI run of 2026-12-03, morning (vmstat), while the other finished its last file.
 SLOW_FIRST = ("test_discrepancy_discover_rounds.py", "test_discrepancy_discover.py",
-              "test_quick_workflow.py", "test_stat_recovery.py", "test_report.py",
-              "test_pipeline.py")
+              "test_quick_workflow.py", "test_pipeline.py", "test_report.py",
+              "test_discrepancy_screen.py", "test_stat_recovery.py", "test_infer_fit.py",
+              "test_infer_law.py", "test_discrepancy_combine.py", "test_infer_compare.py",
+              "test_stat_sbc.py", "test_discrepancy_diagnostics.py", "test_infer_arma.py",
+              "test_cli_fit.py", "test_infer_likelihood.py")
 
 
 def pytest_collection_modifyitems(session, config, items):
