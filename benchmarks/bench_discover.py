@@ -14,6 +14,10 @@ case); default: the short CI campaigns. --refit: also the MCMC refit with the na
 stored run as the default (16 independent chains) or as the default before 2026-12-01 (the
 burn-in's ensemble: bench_fit.py's SAMPLERS), or both side by side on the same campaigns (the
 screening runs again for each). Not a test: figures only.
+
+Side by side, give each run one numba thread (NUMBA_NUM_THREADS=1): with --jobs 1 the
+simulations of a batch run on every core, and three or four such runs on 2 cores took 350-600 s
+per clean short campaign, against 100-200 s for three with one thread each (2026-12-03).
 """
 from __future__ import annotations
 

@@ -354,30 +354,51 @@ _BASE_MAP_BRFD_TO13_50HZ = {
     "w": 0.0002062244599, "force_offset": 89.42029533}
 
 
+#: the baseline's MAP on the MFD campaign with a hidden reversal_hump (seed 18, short), as the
+#: screening's find_map found it (2026-12-03; log-posterior -16,913.9, RMSE 341.7 N against a
+#: noise of 21.3 N): friction levels 1,218 / 1,273 N against the generating 1,820 / 2,439 N
+_BASE_MAP_MFD_RH18 = {
+    "fc_fwd": 1218.2827610444108, "fc_bwd": 1273.19429031785, "fs_fwd": 1461.9962472110958,
+    "fs_bwd": 1348.5901092257823, "v_s": 0.02393499831977577, "sigma0": 835316465.3593926,
+    "sigma1": 2.6593323494813768, "sigma2": 14768.792799787743, "k2": 611753.0148154297,
+    "d2": 0.006655191270046908, "k3": 193463630.20715746, "d3": 0.006288446520055233,
+    "w": 0.0012376355433398327, "force_offset": -276.34065719566956}
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("base_map, min_kept_hz, gap", [(_BASE_MAP_BRFD_TO13, None, 1000.0),
-                                                        (_BASE_MAP_BRFD_TO13_50HZ, 50.0, 900.0)],
-                         ids=["raw-decimation", "kept-at-50Hz"])
-def test_candidate_search_leaves_the_baselines_basin(tmp_path, base_map, min_kept_hz, gap):
+@pytest.mark.parametrize("device, effect, seed, base_map, min_kept_hz, gap", [
+    ("brfd", "takeup_overshoot", 13, _BASE_MAP_BRFD_TO13, None, 1000.0),
+    ("brfd", "takeup_overshoot", 13, _BASE_MAP_BRFD_TO13_50HZ, 50.0, 900.0),
+    ("mfd", "reversal_hump", 18, _BASE_MAP_MFD_RH18, None, 2000.0)],
+    ids=["raw-decimation", "kept-at-50Hz", "mfd-reversal_hump-18"])
+def test_candidate_search_leaves_the_baselines_basin(tmp_path, device, effect, seed, base_map,
+                                                     min_kept_hz, gap):
     """A candidate's MAP search (candidate.candidate_map) starts from the baseline's MAP and also
-    from find_map's heuristic starts: where the baseline bends to absorb a hidden effect, starts
-    from its MAP stay in its basin. The search must end within 5 nats of the fit from the
-    generating values (least squares from them), which is more than `gap` nats above the
-    baseline's MAP (1,000 and 900). Two cases of one campaign:
-    - records decimated as the fits do (2026-11-26): the search ended 302 nats above the
-      baseline's MAP with the overshoot almost off (a_to_fwd 0.02 against 0.60) and discover
-      named reversal_hump; with the heuristic starts 1,570.6 (the generating values' fit 1,560);
-    - records kept at 50 Hz or more (2026-11-27): with the local starts ranked on their
+    from find_map's heuristic starts, with the effect's parameters at their neutral value and at
+    prior draws: where the baseline bends to absorb a hidden effect, starts from its MAP stay in
+    its basin. The search must end within 5 nats of the fit from the generating values (least
+    squares from them), which is more than `gap` nats above the baseline's MAP. Three cases:
+    - a hidden takeup_overshoot (BRFD, seed 13), records decimated as the fits do (2026-11-26):
+      the search ended 302 nats above the baseline's MAP with the overshoot almost off (a_to_fwd
+      0.02 against 0.60) and discover named reversal_hump; with the heuristic starts 1,570.6 (the
+      generating values' fit 1,560);
+    - the same records kept at 50 Hz or more (2026-11-27): with the local starts ranked on their
       coarsened copies, the best stayed at the baseline's MAP plus 0.0 with the effect off (the
       refined starts ended 357-362 nats below it); ranked on the full records, +968.1 (the
-      generating values' fit +958.9).
-    Deterministic, about 20-30 s each."""
+      generating values' fit +958.9);
+    - a hidden reversal_hump (MFD, seed 18; 2026-12-03): with the heuristic start's effect at its
+      neutral value only, the search ended 2,300 nats below the generating values' fit (+393
+      over the baseline, RMSE 257 N against a noise of 21.3 N; fc_fwd 1,047 N against 1,820 N)
+      and discover named none; with the effect's prior draws around the heuristic start and a
+      differential-evolution search seeded with the best of them (candidate.N_HEURISTIC_DRAWS),
+      +2,752.9 against the generating values' fit +2,752.8.
+    Deterministic, about 20-50 s each."""
     from dataclasses import replace
     from frictionuq import published as pub
     from frictionuq.discrepancy import fits as F
     from frictionuq.discrepancy.hidden import LEVEL
     from frictionuq.infer.fit import FitConfig
-    ans = hidden_campaign(tmp_path / "c", "brfd", "takeup_overshoot", seed=13, short=True)
+    ans = hidden_campaign(tmp_path / "c", device, effect, seed=seed, short=True)
     tests = list(load_campaign(tmp_path / "c").tests)
     cfg = FitConfig(samples_per_cycle=100, simulate_at="raw")
     if min_kept_hz is not None:
@@ -385,9 +406,9 @@ def test_candidate_search_leaves_the_baselines_basin(tmp_path, base_map, min_kep
     lp0, _ = F.logpost_for(tests, (), cfg)
     th_b = lp0.space.to_theta(base_map)
     base = {"space": lp0.space, "all": th_b, "log_prob": F.log_prob(lp0, th_b)}
-    lp1, scales = F.logpost_for(tests, ("takeup_overshoot",), cfg)
+    lp1, scales = F.logpost_for(tests, (effect,), cfg)
     _, lp_c = candidate.candidate_map(lp1, base, np.random.default_rng([1, 17, 1]), scales)
-    p = pub.published_params("brfd", LEVEL["brfd"])
+    p = pub.published_params(device, LEVEL[device])
     v = {**base_map, **{n: p[n] for n in base_map if n in p}, **ans["parameters"]}
     lp_truth = F.log_prob(lp1, F.white_fit(lp1, lp1.space.to_theta(v), rounds=3))
     print(f"candidate MAP {lp_c - base['log_prob']:+.1f}, fit from the generating values "

@@ -6,7 +6,8 @@ each applied-force level of a campaign:
 1. the maximum a posteriori point on all tests of the level: for the baseline by
    infer.optimize.find_map (the multi-start search the fits start from); for a candidate by
    least squares from the baseline's MAP with the effect's parameters at their default and at
-   N_EFFECT_STARTS prior draws, and from a differential-evolution search (candidate.candidate_map);
+   N_EFFECT_STARTS prior draws, from find_map's heuristic starts (the effect neutral and at
+   prior draws) and from a differential-evolution search (candidate.candidate_map);
 2. stage 1: a candidate whose MAP on all tests is not more than MIN_GAIN above the baseline's
    (each side refitted from the other's MAP first: recheck.cross_refit) is
    not scored held out (rule (e) below refuses it whatever its held-out score; skipping its
