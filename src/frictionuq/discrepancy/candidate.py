@@ -39,7 +39,7 @@ def candidate_map(logpost, base: dict, rng, scales) -> tuple[np.ndarray, float]:
     about 2 s more per candidate. And from N_HEURISTIC_DRAWS prior draws of the effect's
     parameters around the first heuristic start: with the effect only at its neutral value there,
     the search can return to the baseline's basin. Seen on an MFD campaign with a hidden
-    reversal_hump (seed 18, 2026-12-02): the baseline's friction levels 1,218 / 1,273 N against
+    reversal_hump (seed 18, 2026-12-03): the baseline's friction levels 1,218 / 1,273 N against
     the generating 1,820 / 2,439 N, the candidate's MAP +393 nats over the baseline's (RMSE 257 N
     against a noise of 21.3 N), the fit from the generating values +2,753; three
     differential-evolution searches or 48 effect starts around the baseline's MAP ended at the
