@@ -76,19 +76,15 @@ def candidate_map(logpost, base: dict, rng, scales) -> tuple[np.ndarray, float]:
     coarse = coarsened(logpost, simulate="coarse")   # the screening's calibration
     th0 = F.theta_in(sp, base["space"], base["all"])
     eff_idx = [i for i, n in enumerate(sp.names) if n not in base["space"].names]
-    starts = [th0]
-    for d in sp.sample_prior(N_EFFECT_STARTS, rng):
-        th = th0.copy()
-        th[eff_idx] = d[eff_idx]
-        starts.append(th)
+    starts = [th0] + _with_effect_drawn(th0, eff_idx, sp.sample_prior(N_EFFECT_STARTS, rng))
     hstarts = heuristic_starts(sp, heuristic_values(sp, logpost.records, scales))
     starts += hstarts
     first = np.array([F.white_fit(coarse, s0, rounds=2, max_nfev=50) for s0 in starts])
     lp_first = logpost.log_prob(first)                      # ranked on the full records
     order = np.argsort(-lp_first, kind="stable")
     refine = [first[i] for i in order[:2]]
+    ranked = coarsened(logpost, simulate="kept")      # the global searches' copy
     if N_CANDIDATE_GLOBAL:
-        ranked = coarsened(logpost, simulate="kept")
         for _ in range(N_CANDIDATE_GLOBAL):
             th_g, _ = global_start(ranked, first[order[0]], rng)
             refine.append(th_g)
@@ -102,17 +98,14 @@ def candidate_map(logpost, base: dict, rng, scales) -> tuple[np.ndarray, float]:
     # global search's, is left as it was), and when the best of them ranks above the second of
     # the other starts, it and a differential-evolution search seeded with it are refined last
     rng_h = rng.spawn(1)[0]
-    draws = []
-    for d in sp.sample_prior(N_HEURISTIC_DRAWS, rng_h):
-        th = hstarts[0].copy()
-        th[eff_idx] = d[eff_idx]
-        draws.append(F.white_fit(coarse, th, rounds=2, max_nfev=50))
+    draws = [F.white_fit(coarse, th, rounds=2, max_nfev=50) for th in
+             _with_effect_drawn(hstarts[0], eff_idx, sp.sample_prior(N_HEURISTIC_DRAWS, rng_h))]
     if draws:
         lp_draws = logpost.log_prob(np.array(draws))
         if lp_draws.max() > lp_first[order[1]]:
             th_d = draws[int(np.argmax(lp_draws))]
             refine.append(th_d)
-            refine.append(global_start(coarsened(logpost, simulate="kept"), th_d, rng_h)[0])
+            refine.append(global_start(ranked, th_d, rng_h)[0])
     best, best_lp = th0, F.log_prob(logpost, th0)
     for s0 in refine:
         th = F.white_fit(logpost, s0, rounds=3)
@@ -120,6 +113,16 @@ def candidate_map(logpost, base: dict, rng, scales) -> tuple[np.ndarray, float]:
         if lp > best_lp:
             best, best_lp = th, lp
     return best, best_lp
+
+
+def _with_effect_drawn(th, eff_idx, draws) -> list[np.ndarray]:
+    """Copies of the point th with the effect's parameters (eff_idx) taken from each draw."""
+    out = []
+    for d in draws:
+        t = th.copy()
+        t[eff_idx] = d[eff_idx]
+        out.append(t)
+    return out
 
 
 def fit_candidate(args) -> tuple[np.ndarray, float, float]:
