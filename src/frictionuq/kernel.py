@@ -2,7 +2,11 @@
 
 Everything here is SI and positional; names, validation and effects-as-mappings live in
 `frictionuq.params` and `frictionuq.model`. The whole kernel stays in this one module because
-numba's on-disk cache keys on the file that holds a jitted function.
+numba's on-disk cache keys on the file that holds a jitted function: a cached caller is not
+recompiled when a helper it calls from another file changes (numba's documented limitation,
+numba/numba#1833). Checked on numba 0.68.1 (2026-12-03): `f` in a.py cached with `inc` imported
+from b.py, `inc` edited from `return 1` to `return 2`, and `f(1)` still returned 2. Split
+across files, an edited kernel could run stale code from an installed cache.
 
 Parameter vector layout (see params.VECTOR_NAMES):
     0 fc_fwd 1 fc_bwd 2 fs_fwd 3 fs_bwd 4 v_s 5 sigma0 6 sigma1 7 sigma2 8 k2 9 d2 10 k3 11 d3 12 w
