@@ -92,6 +92,10 @@ def test_the_stored_run_is_chosen_in_the_sampler_table(tmp_path):
     ("\n[discrepancy]\nmax_effects = 1.5\n", "[discrepancy].max_effects", "integer"),
     ("\n[discrepancy]\nextra_effects = [\"eccentricity\"]\n", "[discrepancy].extra_effects",
      "not one of chatter, speed_weakening, takeup_overshoot"),
+    ("\n[discrepancy]\ncheck_seeds = [1]\n", "[discrepancy].check_seeds", "the workflow's own seed"),
+    ("\n[discrepancy]\ncheck_seeds = [2, 2]\n", "[discrepancy].check_seeds", "twice"),
+    ("\n[discrepancy]\ncheck_seeds = [-2]\n", "[discrepancy].check_seeds", "must be >= 0"),
+    ("\n[discrepancy]\ncheck_seeds = 2\n", "[discrepancy].check_seeds", "list of integers"),
 ])
 def test_bad_keys_and_values_name_file_key_and_problem(tmp_path, extra, where, problem):
     p = _write(tmp_path, extra)
@@ -218,3 +222,21 @@ def test_workflow_refuses_per_test_offsets_with_what_they_cannot_serve(tmp_path)
     with pytest.raises(InputError, match=r"\[fit\]\.force_offset.*\[fit\]\.effects has chatter"):
         load_workflow(_write(tmp_path, "", base.replace("[fit]", "[fit]\neffects = ['chatter']")))
     assert load_workflow(_write(tmp_path, "\n[discrepancy]\nenabled = true\n", base)).fit_config().force_offset == "per_test"
+
+
+def test_check_seeds_reach_discover(tmp_path, monkeypatch):
+    """[discrepancy] check_seeds: read (default none) and handed to discover by the stage."""
+    from frictionuq.discrepancy import discover as D
+    from frictionuq.pipeline import tasks as T
+    assert load_workflow(_write(tmp_path, "\n[discrepancy]\nenabled = true\n")
+                         ).config["discrepancy"]["check_seeds"] == []
+    wf = load_workflow(_write(tmp_path, "\n[discrepancy]\nenabled = true\ncheck_seeds = [2, 3]\n"))
+    seen = {}
+
+    def stub(*args, **kw):
+        seen.update(kw)
+        return {"named_effects": []}
+
+    monkeypatch.setattr(D, "discover", stub)
+    T._discrepancy(wf, plan(wf)["discrepancy"], lambda m: None)
+    assert seen["check_seeds"] == (2, 3) and seen["seed"] == 1

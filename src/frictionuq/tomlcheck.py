@@ -64,6 +64,17 @@ class Checker:
             self.fail(f"{where}.{key}", f"must be >= {minimum}, got {v!r}")
         return v
 
+    def integers(self, t, key, where, minimum=0):
+        v = t.get(key, [])
+        if not isinstance(v, list) or not all(isinstance(i, int) and not isinstance(i, bool)
+                                              for i in v):
+            self.fail(f"{where}.{key}", f"must be a list of integers, got {v!r}")
+        if any(i < minimum for i in v):
+            self.fail(f"{where}.{key}", f"entries must be >= {minimum}, got {v!r}")
+        if len(set(v)) != len(v):
+            self.fail(f"{where}.{key}", "lists an entry twice")
+        return list(v)
+
     def strings(self, t, key, where, choices=None):
         v = t.get(key, [])
         if not isinstance(v, list) or not all(isinstance(s, str) and s for s in v):

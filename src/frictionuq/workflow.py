@@ -34,7 +34,8 @@ the campaign's own applied unit for `applied` (e.g. lb).
     [discrepancy] enabled = false, refit = true, tests/kinds (default: the fit's),
                 extra_effects = [] (effects beyond the spec to screen too: "takeup_overshoot",
                 "speed_weakening", "chatter"), max_effects = 1 (how many effects may be named,
-                one per round):
+                one per round), check_seeds = [] (screen again with these seeds: does the name
+                hold? discover --check-seed):
                 the `frictionuq discover` stage (screen the effect library, name, refit)
 """
 from __future__ import annotations
@@ -67,7 +68,8 @@ SECTIONS = {
     "predict": {"n_draws", "validate", "harmonic", "ground_motion"},
     "compare": {"enabled", "models", "tests", "kinds", "samples_per_cycle", "sampler"},
     "report": {"enabled", "title", "published"},
-    "discrepancy": {"enabled", "refit", "tests", "kinds", "extra_effects", "max_effects"},
+    "discrepancy": {"enabled", "refit", "tests", "kinds", "extra_effects", "max_effects",
+                    "check_seeds"},
 }
 HARMONIC_KEYS = {"name", "amplitude_m", "frequency_hz", "applied"}
 GROUND_KEYS = {"name", "record", "file", "dt", "unit", "column", "peak_m", "applied", "rate_hz"}
@@ -333,7 +335,11 @@ def load_workflow(path) -> Workflow:
                           "extra_effects": c.strings(dt, "extra_effects", "[discrepancy]",
                                                      tuple(sorted(BEYOND_SPEC))),
                           "max_effects": c.num(dt, "max_effects", "[discrepancy]", 1,
-                                               integer=True, minimum=1)}
+                                               integer=True, minimum=1),
+                          "check_seeds": c.integers(dt, "check_seeds", "[discrepancy]")}
+    if cfg["workflow"]["seed"] in cfg["discrepancy"]["check_seeds"]:
+        c.fail("[discrepancy].check_seeds", f"{cfg['workflow']['seed']} is the workflow's own "
+               "seed; give other seeds")
     if cfg["fit"]["likelihood"] == "arma":     # held-out scoring integrates AR(1)/iid noise only
         for sec in ("compare", "discrepancy"):
             if cfg[sec]["enabled"]:

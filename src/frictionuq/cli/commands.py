@@ -169,7 +169,8 @@ def _cmd_discover(a):
                     reversal=a.reversal, force_offset=a.force_offset)
     d = discover(a.campaign, a.out, cfg, seed=a.seed, refit=not a.no_refit,
                  extra_effects=tuple(a.extra_effect or ()), max_effects=a.max_effects,
-                 jobs=a.jobs, log=lambda m: print(m, file=sys.stderr))
+                 jobs=a.jobs, check_seeds=tuple(a.check_seed or ()),
+                 log=lambda m: print(m, file=sys.stderr))
     print(f"{'candidate':<20}{'ELPD gain (nats)':>18}{'SE':>10}{'MAP gain (nats)':>17}"
           f"{'RMSE after (N)':>16}")
     for c in d["candidates"]:
@@ -182,6 +183,9 @@ def _cmd_discover(a):
     for r in d["rounds"][1:]:
         print(f"round {r['round']} (against 3-stage + {' + '.join(r['baseline_effects'])}): "
               f"named {r['named_effect']} ({r['reason']})")
+    if d.get("seed_check"):
+        from ..discrepancy.seedcheck import sentence
+        print(sentence(d["seed_check"]))
     print(f"RMSE before {d['rmse_before']:.4g} N, after {d['rmse_after']:.4g} N"
           + (f", noise scale {d['noise_scale']:.4g} N" if d["noise_scale"] else ""))
     def unit(u):                        # a dimensionless value shows no unit

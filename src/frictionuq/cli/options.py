@@ -196,6 +196,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--max-effects", type=int, default=1, metavar="N",
                    help="name up to N effects, one per round, each screened against the model "
                         "with the ones named before (default 1)")
+    s.add_argument("--check-seed", action="append", type=int, metavar="N",
+                   help="screen again with seed N (repeatable) and say whether every seed names "
+                        "the same effects (one more screening each)")
     from ..workers import default_jobs
     s.add_argument("--jobs", "-j", type=int, default=default_jobs(), metavar="N",
                    help="processes for the screening's fits (default: every core, here "

@@ -19,7 +19,9 @@
 5. Do the level's tests share one force zero? The between-tests check of every joint fit
    (infer.between) at the baseline's MAP (`between_tests`; _between says why this is a check
    and not a candidate of the screening).
-6. Write DIR/discrepancy.json (forces in N) and the chains/posteriors of the refit under
+6. With check seeds (seedcheck.py): screen again from other random starts; does every seed name
+   the same effects?
+7. Write DIR/discrepancy.json (forces in N) and the chains/posteriors of the refit under
    DIR/refit/.
 
 rmse_before is the baseline's RMSE at its MAP (offset removed) on the fit's records;
@@ -48,7 +50,7 @@ from ..environment import environment
 from ..errors import InputError, check_seed
 from ..infer.fit import FitConfig, FitSpec, jsonable, plan, run_fit
 from ..infer.likelihood import NOISE_EFFECT_MIN_KEPT_HZ
-from . import fits, screen
+from . import fits, screen, seedcheck
 from ..workers import Workers
 
 
@@ -238,7 +240,7 @@ def _screen_rounds(specs, cfg, seed, effects, extra_effects, max_effects, log,
 
 def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: int = 1,
              effects=None, extra_effects=(), refit: bool = True, diagnostics: bool = True,
-             max_effects: int = 1, jobs: int = 1, log=None) -> dict:
+             max_effects: int = 1, jobs: int = 1, check_seeds=(), log=None) -> dict:
     """Run the workflow on a campaign; returns (and writes) the discrepancy document.
     effects: the candidates (default: screen.candidates, the spec's library); extra_effects:
     effects beyond the spec (params.BEYOND_SPEC) to screen as well. max_effects: how many
@@ -248,6 +250,9 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
     1 here, as inside a pipeline task, which has its own processes); the results do not depend
     on it. With jobs > 1 the workers are spawned: a script calling this must do so under
     `if __name__ == "__main__":` (Python's rule for spawned processes).
+
+    check_seeds: seeds to screen the campaign again with (seedcheck.py): `seed_check` in the
+    document says whether each names the same effects.
 
     Decimated records are simulated as the config says (raw rate by default, as the fits)."""
     from .. import __version__
@@ -264,6 +269,12 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
         raise InputError(f"discover: max_effects must be an integer >= 1, got {max_effects!r}")
     if not (isinstance(jobs, int) and jobs >= 1):
         raise InputError(f"discover: jobs must be an integer >= 1, got {jobs!r}")
+    check_seeds = tuple(check_seeds)
+    for s_ in check_seeds:
+        check_seed(s_, "discover --check-seed")
+    if seed in check_seeds or len(set(check_seeds)) < len(check_seeds):
+        raise InputError(f"discover: check seeds {list(check_seeds)} must differ from each other "
+                         f"and from the run's seed {seed}")
     from .. import params as P
     if isinstance(effects, str):          # one name, not its letters
         effects = (effects,)
@@ -292,6 +303,9 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
     specs = plan(camp, "applied", cfg)
     with Workers(jobs) as workers:
         rounds = _screen_rounds(specs, cfg, seed, effects, extra_effects, max_effects, log, workers)
+        checks = [(s_, _screen_rounds(specs, replace(cfg, seed=s_), s_, effects, extra_effects,
+                                      max_effects, lambda m, s_=s_: log(f"seed check {s_}: {m}"),
+                                      workers)) for s_ in check_seeds]
     named_all = [r["named"] for r in rounds if r["named"] != "none"]
     named = named_all[0] if named_all else "none"
     levels = rounds[0]["levels"]
@@ -317,6 +331,9 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
                        "candidates": _candidate_rows(r["ranked"]),
                        **({"levels": r["levels"]} if i else {})} for i, r in enumerate(rounds)],
            "units": {"rmse": "N", "noise_scale": "N", "elpd": "nats"}}
+    if checks:
+        doc["seed_check"] = seedcheck.summarize(seed, named_all, checks)
+        log(seedcheck.sentence(doc["seed_check"]))
     doc["between_tests"] = [b for b in (_between(s, cfg, lv) for s, lv in zip(specs, levels)) if b]
     for b in doc["between_tests"]:
         log(f"level {b['level']}: " + (

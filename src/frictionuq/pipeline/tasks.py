@@ -194,7 +194,8 @@ def _discrepancy(wf, task, log):
     doc = discover(Path(wf.out) / "ingest", d, cfg, seed=wf.seed,
                    refit=wf.config["discrepancy"]["refit"],
                    extra_effects=tuple(wf.config["discrepancy"]["extra_effects"] or ()),
-                   max_effects=wf.config["discrepancy"]["max_effects"], log=log)
+                   max_effects=wf.config["discrepancy"]["max_effects"],
+                   check_seeds=tuple(wf.config["discrepancy"]["check_seeds"]), log=log)
     log(f"discrepancy: named effect(s) {', '.join(doc['named_effects']) or 'none'}")
 
 

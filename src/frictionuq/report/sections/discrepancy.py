@@ -7,6 +7,7 @@ import json
 
 from .. import blocks as B
 from ...params import NOISE_EFFECTS
+from ...discrepancy import seedcheck
 from ... import units
 from ..tables import num, scaled, table
 
@@ -26,6 +27,8 @@ def build(ctx, folder=None) -> list[dict]:
         out.append(B.para(f"Round {r['round']}, against the 3-stage model with "
                           f"{' + '.join(r['baseline_effects'])}: named {r['named_effect']} "
                           f"({r['reason']})."))
+    if d.get("seed_check"):          # discover --check-seed
+        out.append(B.para(seedcheck.sentence(d["seed_check"])))
     after = f" (with {' + '.join(named)})" if len(named) > 1 else ""
     out.append(B.para(f"RMSE before (baseline 3-stage, at its MAP): {num(d['rmse_before'])} N; "
                       f"after{after}: {num(d['rmse_after'])} N"
