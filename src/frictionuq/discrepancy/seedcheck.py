@@ -7,9 +7,10 @@ campaigns) the names held when code changes moved the starts (docs/log-discrepan
 at 25 lb of dataset 1 (2026-12-04, one host) seed 1 named eccentricity (+330.0 nats held out),
 seed 2 none (eccentricity's MAP raised the RMSE, rule (f)), and the same code on another CPU
 type, whose rounding moves the searches' optima, named takeup_overshoot; 20 and 70 lb moved
-with the seed and the CPU type as well; 35 lb held across the CPU types. A check seed screens the campaign again, every round, with its own starts
-(the baseline's too), and the document says whether every seed names the same effects. It costs
-one more screening per check seed; the refit and the diagnostics are the main seed's only.
+with the seed and the CPU type as well; 35 lb held across the CPU types. A check seed screens
+the campaign again, every round, with its own starts (the baseline's too), and the document
+says whether every seed names the same effects. It costs one more screening per check seed;
+the refit and the diagnostics are the main seed's only.
 """
 from __future__ import annotations
 
