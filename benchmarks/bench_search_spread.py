@@ -19,9 +19,11 @@ import time
 
 import numpy as np
 
+from frictionuq import params as P
 from frictionuq.campaign import load_campaign
 from frictionuq.discrepancy import fits as F
 from frictionuq.discrepancy.candidate import candidate_map
+from frictionuq.errors import InputError
 from frictionuq.infer.fit import FitConfig, plan
 from frictionuq.infer.optimize import coarsened, find_map, global_start
 
@@ -55,9 +57,15 @@ def main(argv=None) -> int:
     ap.add_argument("--samples-per-cycle", type=float, default=None,
                     help="the fits' decimation (default: FitConfig's, as `frictionuq discover`)")
     a = ap.parse_args(argv)
+    unknown = [e for e in a.effect if e not in P.EFFECTS]
+    if unknown:
+        ap.error(f"--effect {unknown[0]!r}: not an effect; known: {', '.join(P.EFFECTS)}")
     rate = {"samples_per_cycle": a.samples_per_cycle} if a.samples_per_cycle else {}
     cfg = FitConfig(tests=tuple(a.test), **rate)
-    specs = plan(load_campaign(a.campaign), "applied", cfg)
+    try:
+        specs = plan(load_campaign(a.campaign), "applied", cfg)
+    except InputError as e:
+        ap.error(str(e))
     if len(specs) != 1:
         ap.error(f"the tests {a.test} span {len(specs)} applied forces; give one level's tests")
     tests = specs[0].tests
@@ -69,14 +77,14 @@ def main(argv=None) -> int:
                                    n_random=1, n_prior=1)
         base = {"space": lp.space, "all": th, "log_prob": lpmap,
                 "global_points": info.get("global_points", [])}
-        print(f"seed {seed}: baseline MAP {lpmap:.1f} nats, RMSE {F.rmse(lp, th):.0f} N "
+        print(f"seed {seed}: baseline MAP {lpmap:.1f} nats, RMSE {F.rmse(lp, th):.4g} N "
               f"({time.perf_counter() - t0:.0f} s)", flush=True)
         for e in a.effect:
             r = spread(tests, cfg, e, seed, a.extra, base)
             gains = [g for _, g, _, _ in r["ends"]]
             print(f"  {e}: best {max(gains):+.1f} nats, spread {max(gains) - min(gains):.1f} nats")
             for what, g, rmse, secs in r["ends"]:
-                print(f"    {what:28s} {g:+9.1f} nats  RMSE {rmse:7.0f} N  {secs:5.0f} s", flush=True)
+                print(f"    {what:28s} {g:+9.1f} nats  RMSE {rmse:8.4g} N  {secs:5.0f} s", flush=True)
     return 0
 
 
