@@ -7,10 +7,13 @@ campaigns) the names held when code changes moved the starts (docs/log-discrepan
 at 25 lb of dataset 1 (2026-12-04, one host) seed 1 named eccentricity (+330.0 nats held out),
 seed 2 none (eccentricity's MAP raised the RMSE, rule (f)), and the same code on another CPU
 type, whose rounding moves the searches' optima, named takeup_overshoot; 20 and 70 lb moved
-with the seed and the CPU type as well; 35 lb held across the CPU types. A check seed screens
-the campaign again, every round, with its own starts (the baseline's too), and the document
-says whether every seed names the same effects. It costs one more screening per check seed;
-the refit and the diagnostics are the main seed's only.
+with the seed and the CPU type as well; 35 lb (takeup_overshoot), 22 and 80 lb (none) held
+across both. Where a name moves, the candidate's own optimum is rugged: at 20 and 25 lb four
+searches per seed ended over 93 and 425 nats (benchmarks/bench_search_spread.py), so more
+searches would not settle it; the check reports it. A check seed screens the campaign again,
+every round, with its own starts (the baseline's too), and the document says whether every
+seed names the same effects. It costs one more screening per check seed; the refit and the
+diagnostics are the main seed's only.
 """
 from __future__ import annotations
 
@@ -41,7 +44,7 @@ def sentence(check: dict) -> str:
     seeds, names = check["seeds"], check["named_effects"]
     if check["stable"]:
         return (f"Seed check: seeds {', '.join(map(str, seeds))} all name {_names(names[0])}; the "
-                "name does not depend on the searches' random starts.")
+                "name did not change with the searches' random starts.")
     per = "; ".join(f"seed {s}: {_names(n)}" for s, n in zip(seeds, names))
     return (f"Seed check: the name depends on the searches' random starts ({per}), so it rests on "
             "where the searches end, not on the data alone: take the names the seeds give as "
