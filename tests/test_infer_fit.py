@@ -110,6 +110,30 @@ def test_the_map_search_never_ends_below_a_start_it_refined(tmp_path, monkeypatc
     assert lp_map >= max(info["refined_starts_log_prob"]) - 1e-6
 
 
+@pytest.mark.parametrize("ndim, members", [(4, 32), (14, 128), (17, 128), (20, 128)])
+def test_global_start_keeps_its_population_at_most_128(ndim, members):
+    """optimize.global_start's differential evolution evaluates at most DE_MAX_POPULATION (128)
+    members per generation: scipy rounds popsize x D up to a power of 2 for its Sobol start, so
+    popsize 8 gave 256 members from 17 parameters on (an effect with 3 or more parameters on the
+    14 of the baseline), twice the simulations per generation. A quadratic toy; every batch the
+    search asks for is recorded."""
+    from frictionuq.infer import optimize
+    sp = NS(lo=-np.ones(ndim), hi=np.ones(ndim), ndim=ndim)
+    sizes = []
+
+    class Toy:
+        space = sp
+
+        def log_prob(self, X):
+            X = np.atleast_2d(X)
+            sizes.append(len(X))
+            return -np.sum((X - 0.3) ** 2, axis=1)
+
+    th, gens = optimize.global_start(Toy(), None, np.random.default_rng(1), maxiter=3)
+    assert max(sizes) == members and gens >= 1
+    assert np.all((th >= sp.lo) & (th <= sp.hi))
+
+
 def test_polish_returns_its_best_point_with_that_points_log_posterior():
     """optimize.polish returns the best point Powell evaluated with the log-posterior it had
     there (no re-evaluation): the two must agree exactly, never fall below the start, and the

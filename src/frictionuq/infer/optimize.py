@@ -137,6 +137,16 @@ def _log_prob_batched(logpost: LogPosterior, X: np.ndarray, batch: int = 256) ->
     return np.concatenate([logpost.log_prob(X[i:i + batch]) for i in range(0, len(X), batch)])
 
 
+#: global_start's largest population. scipy's Sobol initialisation rounds popsize x D up to a
+#: power of 2, so popsize 8 gave 256 members from 17 parameters on (a candidate effect with 3 or
+#: more parameters, every second-round candidate), twice the 14-parameter baseline's 128; the
+#: multiplier is lowered there instead (7 for 17 parameters, 6 for 20). Measured 2026-12-04
+#: (docs/log-discrepancy.md): the slowest CI case (two rounds, overshoot + chatter) 302 s
+#: against 380 s; the hidden eccentricity and stage2_nonlinear campaigns and clean ones of
+#: seeds 11-13, 16, 17 and 31-34 and the real 22, 35 and 80 lb levels were named as with 256.
+DE_MAX_POPULATION = 128
+
+
 def global_start(coarse: LogPosterior, theta0: np.ndarray | None, rng: np.random.Generator,
                  popsize: int = 8, maxiter: int = 300) -> tuple[np.ndarray, int]:
     """Best point of a differential-evolution search (scipy, vectorised: each generation is one
@@ -157,6 +167,7 @@ def global_start(coarse: LogPosterior, theta0: np.ndarray | None, rng: np.random
         v = _log_prob_batched(coarse, np.atleast_2d(X.T))
         return np.where(np.isfinite(v), -v, 1e300)
     sp = coarse.space
+    popsize = max(1, min(popsize, DE_MAX_POPULATION // sp.ndim))
     r = differential_evolution(nlp, list(zip(sp.lo, sp.hi)), popsize=popsize, maxiter=maxiter,
                                vectorized=True, updating="deferred", polish=False, rng=rng,
                                x0=None if theta0 is None else clip_in(sp, theta0), init="sobol",
