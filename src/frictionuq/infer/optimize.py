@@ -142,7 +142,7 @@ def _log_prob_batched(logpost: LogPosterior, X: np.ndarray, batch: int = 256) ->
 #: more parameters, every second-round candidate), twice the 14-parameter baseline's 128; the
 #: multiplier is lowered there instead (7 for 17 parameters, 6 for 20). Measured 2026-12-04
 #: (docs/log-discrepancy.md): the slowest CI case (two rounds, overshoot + chatter) 302 s
-#: against 380 s alone (the whole suite 29 min 15 s against 30 min 20 s; item 6 3 % faster);
+#: against 380 s side by side (the whole suite 29 min 15 s against 30 min 20 s; item 6 3 % faster);
 #: the hidden eccentricity and stage2_nonlinear campaigns and clean ones of seeds 11-13, 16, 17
 #: and 31-34 and the real 22, 25, 35 and 80 lb levels were named as with 256.
 DE_MAX_POPULATION = 128
