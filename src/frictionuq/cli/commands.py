@@ -159,14 +159,20 @@ def _cmd_compare(a):
         return 1
 
 
-def _cmd_discover(a):
-    from ..discrepancy.discover import discover
+def discover_config(a):
+    """The FitConfig `frictionuq discover` runs with the parsed options a (the speed benchmark,
+    benchmarks/bench_discover.py --full, measures this configuration)."""
     from ..infer.fit import FitConfig
     from ..infer.priors import prior_options
-    samp = _sampler_config(a)
-    cfg = FitConfig(likelihood=a.likelihood, sampler=samp, priors=prior_options(a.prior), tests=tuple(a.test) if a.test else None,
-                    kinds=tuple(a.kind) if a.kind else None, drive_lowpass=a.drive_lowpass,
-                    reversal=a.reversal, force_offset=a.force_offset)
+    return FitConfig(likelihood=a.likelihood, sampler=_sampler_config(a),
+                     priors=prior_options(a.prior), tests=tuple(a.test) if a.test else None,
+                     kinds=tuple(a.kind) if a.kind else None, drive_lowpass=a.drive_lowpass,
+                     reversal=a.reversal, force_offset=a.force_offset)
+
+
+def _cmd_discover(a):
+    from ..discrepancy.discover import discover
+    cfg = discover_config(a)
     d = discover(a.campaign, a.out, cfg, seed=a.seed, refit=not a.no_refit,
                  extra_effects=tuple(a.extra_effect or ()), max_effects=a.max_effects,
                  jobs=a.jobs, check_seeds=tuple(a.check_seed or ()),
