@@ -150,6 +150,8 @@ def main(argv=None) -> int:
                               + {True: ", refit converged", False: ", refit NOT converged",
                                  None: ""}[row.get("refit_converged")], flush=True)
                         if a.verbose:
+                            st = doc["seconds_by_stage"]
+                            print("      " + ", ".join(f"{k} {v:.1f} s" for k, v in st.items()), flush=True)
                             print(f"      gain per held-out unit (nats): {row['per_unit']}; MAP gain on "
                                   f"all units: {row['map_gain']}; {doc['reason']}", flush=True)
                             for r in doc["rounds"][1:]:

@@ -43,6 +43,11 @@ def check_discover(tmp_path, device, effect, seed, refit, also=None, max_effects
     doc = json.loads((tmp_path / "out" / "discrepancy.json").read_text())
     assert doc["named_effect"] == (d["named_effects"] or ["none"])[0] and doc["package_version"]
     assert doc["seed"] == 1 and doc["max_effects"] == max_effects
+    # where the time went: the three stages, in order, within the whole run's seconds
+    st = doc["seconds_by_stage"]
+    assert list(st) == ["screening", "refit", "diagnostics"] and min(st.values()) >= 0.0
+    assert sum(st.values()) <= doc["seconds"]
+    assert (st["refit"] > 1.0) == refit, st
     assert doc["environment"]["packages"]["numba"] and doc["environment"]["numba_cpu"]
     # the other candidates passing the rule, listed beside each round's name (screen.alternatives)
     for r in [doc] + doc["rounds"]:

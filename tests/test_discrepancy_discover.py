@@ -6,6 +6,7 @@ test_discrepancy_discover_rounds.py, on the other worker."""
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 
@@ -51,6 +52,7 @@ def test_cli_discover_on_a_clean_mfd_campaign(tmp_path, capsys):
     out = capsys.readouterr().out
     assert code == 0, out
     assert "named effect: none" in out and "report.html" in out
+    assert re.search(r"^time: \d+ s \(screening \d+ s, refit 0 s, diagnostics \d+ s\)$", out, re.M), out
     doc = json.loads((tmp_path / "out" / "discrepancy.json").read_text())
     assert doc["named_effect"] == "none" and doc["config"]["samples_per_cycle"]
     assert doc["alternatives"] == [] and doc["environment"]["numba_cpu"]

@@ -203,6 +203,9 @@ def _cmd_discover(a):
               + ", ".join(f"{n} = {v['value']:.4g}{unit(v['unit'])}" for n, v in vals.items()))
     from ..report import render_discrepancy_page
     page = render_discrepancy_page(a.out)
+    st = d["seconds_by_stage"]
+    print(f"time: {d['seconds']:.0f} s (screening {st['screening']:.0f} s, refit {st['refit']:.0f} s, "
+          f"diagnostics {st['diagnostics']:.0f} s)")
     print(f"wrote {a.out}/discrepancy.json and {page}")
 
 

@@ -330,7 +330,7 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
                        "alternatives": screen.alternatives(r["ranked"], r["named"]),
                        "candidates": _candidate_rows(r["ranked"]),
                        **({"levels": r["levels"]} if i else {})} for i, r in enumerate(rounds)],
-           "units": {"rmse": "N", "noise_scale": "N", "elpd": "nats"}}
+           "units": {"rmse": "N", "noise_scale": "N", "elpd": "nats", "seconds": "s"}}
     if checks:
         doc["seed_check"] = seedcheck.summarize(seed, named_all, checks)
         log(seedcheck.sentence(doc["seed_check"]))
@@ -342,6 +342,10 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
             f"{b['df']}, p = {b['p_value']:.2g}): --force-offset per_test gives each its own"
             if b["significant"] else f"the tests share one force zero within the noise (p = "
             f"{b['p_value']:.2g})"))
+    t_refit = time.perf_counter()
+    # where the time went (s): loading, the screening's rounds, seed checks and the between-tests
+    # check; the MCMC refit; the residual diagnostics and their figures
+    stages = {"screening": t_refit - t0}
     if refit:
         eff = tuple(named_all)
         entries = []
@@ -367,12 +371,16 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
             lv["id"]: {n: {"value": float(m[n]), "unit": P.PARAMS[n].unit}
                        for e_ in named_all for n in P.EFFECTS[e_] if n in m}
             for lv, m in zip(last["levels"], final_maps)}
+    stages["refit"] = time.perf_counter() - t_refit
+    t_diag = time.perf_counter()
     if diagnostics:
         doc["diagnostics"], doc["combined_diagnostics"] = [], []
         for s_, lv, fm in zip(specs, levels, final_maps):
             gap = _gap(s_.tests, cfg, lv["models"]["baseline"]["map"], named_all, fm, seed, out, log)
             doc["diagnostics"] += gap
             doc["combined_diagnostics"] += _combined(s_.id, gap, log)
+    stages["diagnostics"] = time.perf_counter() - t_diag
     doc["seconds"] = time.perf_counter() - t0
+    doc["seconds_by_stage"] = stages
     atomic.write_json(out / "discrepancy.json", jsonable(doc))
     return doc
