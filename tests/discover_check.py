@@ -23,7 +23,7 @@ def check_discover(tmp_path, device, effect, seed, refit, also=None, max_effects
     always fails; the false-alarm guard is the decision rule (screen.py), measured on the clean
     campaigns of benchmarks/bench_discover.py: 0 false alarms in 100 short ones (one-sided 95 %
     bound 3 %; docs/log-discrepancy.md). The CI's hidden-effect cases are not a random sample of
-    that benchmark: stage2_nonlinear, named on 3 of 24 short campaigns, is not among them (the
+    that benchmark: stage2_nonlinear, named on 3 of 26 short campaigns, is not among them (the
     README's hit-rate table says so); the larger set (every effect, both devices, refits) is
     that benchmark. With max_effects > 1, discover names effects one per
     round (forward selection): a second hidden effect (`also`) is named too, and the gap checks
