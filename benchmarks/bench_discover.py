@@ -49,8 +49,8 @@ def bench_config(full: bool, samples_per_cycle: float | None, max_steps: int | N
     """The discover configuration of a run: the CI tests' on the short campaigns; on the full
     ones (the issue's speed case) what `frictionuq discover CAMPAIGN --out DIR` runs, FitConfig's
     and SamplerConfig's defaults, so that the figure is the one a user gets. Until 2026-12-04
-    --full ran the short campaigns' 100 samples per cycle and a 3,000-step cap too, whose refit
-    stopped unconverged (docs/log-discrepancy.md)."""
+    --full ran the short campaigns' 100 samples per cycle and a 3,000-step cap too, where the
+    refit mostly stopped unconverged (docs/log-discrepancy.md)."""
     spc = samples_per_cycle if samples_per_cycle is not None else (
         FitConfig().samples_per_cycle if full else SHORT_SAMPLES_PER_CYCLE)
     steps = max_steps if max_steps is not None else (

@@ -1,7 +1,7 @@
 """benchmarks/bench_discover.py's configurations: the speed case (--full) runs what `frictionuq
 discover CAMPAIGN --out DIR` runs, and the short campaigns what the CI's end-to-end cases run
 (tests/discover_check.py). Until 2026-12-04 --full ran the short campaigns' 100 samples per cycle
-and a 3,000-step cap, under which the refit stopped unconverged: the speed figure was not the
+and a 3,000-step cap, under which the refit mostly stopped unconverged: the speed figure was not the
 user's."""
 from __future__ import annotations
 
