@@ -5,6 +5,7 @@ from other starts on the real 25 lb records is measured in docs/log-discrepancy.
 from __future__ import annotations
 
 import json
+import re
 from html import unescape
 
 import pytest
@@ -72,6 +73,8 @@ def test_discover_screens_again_with_each_check_seed_and_reports_it(tmp_path, st
     html = unescape(render_discrepancy_page(tmp_path / "out").read_text())
     assert "Seed check: the name depends on the searches' random starts" in html
     assert "seed 2: eccentricity" in html
+    # where the run's time went, in its provenance (discrepancy.json's seconds_by_stage)
+    assert re.search(r"seed 1, in \d+ s \(screening \d+ s, refit 0 s, diagnostics 0 s\)\.", html), html
     # without check seeds: one screening, no seed_check
     calls.clear()
     doc = D.discover(tmp_path / "c", tmp_path / "out2", seed=1, refit=False, diagnostics=False)

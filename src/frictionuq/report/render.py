@@ -82,9 +82,11 @@ def render_discrepancy_page(folder, out_html=None) -> Path:
     d = json.loads(p.read_text())
     ctx = Context(folder, {}, {})
     generated = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+    st = d.get("seconds_by_stage") or {}
+    stages = (" (" + ", ".join(f"{k} {v:.0f} s" for k, v in st.items()) + ")") if st else ""
     prov = [B.para(f"Made by frictionuq {d.get('package_version')} from campaign "
                    f"{d.get('campaign')} ({d.get('campaign_path')}), seed {d.get('seed')}, in "
-                   f"{d.get('seconds', float('nan')):.0f} s."),
+                   f"{d.get('seconds', float('nan')):.0f} s{stages}."),
             B.pre(json.dumps(d.get("config", {}), indent=2))]
     if isinstance(d.get("environment"), dict):      # software and machine (frictionuq.environment)
         prov.append(B.pre(json.dumps(d["environment"], indent=2)))
