@@ -7,6 +7,7 @@ wall time, then the hit rate and false-alarm count, in one run.
         [--effects none eccentricity ...] [--extra-effects takeup_overshoot] [--simulate-at raw|kept]
         [--also chatter --max-effects 2] [--chatter-form bursts] [--jobs 2]
         [--samples-per-cycle 400] [--max-steps 3000] [--sampler chains|ensemble|both] [--verbose]
+        [--rows ROWS.jsonl]
 
 --full: full-length records (two harmonics of ~5,000 samples and a Kobe replay, the issue's speed
 case) under the CLI's own configuration (`frictionuq discover CAMPAIGN --out DIR`: 400 samples
@@ -25,13 +26,16 @@ per clean short campaign, against 100-200 s for three with one thread each (2026
 from __future__ import annotations
 
 import argparse
+import json
 import tempfile
 import time
 from pathlib import Path
 
+from frictionuq import atomic
 from frictionuq import params as P
 from frictionuq.discrepancy.discover import discover
 from frictionuq.discrepancy.hidden import hidden_campaign
+from frictionuq.errors import InputError
 from frictionuq.infer.fit import FitConfig
 from frictionuq.infer.sampler import SamplerConfig
 
@@ -57,6 +61,53 @@ def bench_config(full: bool, samples_per_cycle: float | None, max_steps: int | N
         SamplerConfig().max_steps if full else SHORT_MAX_STEPS)
     return FitConfig(samples_per_cycle=spc, simulate_at=simulate_at,
                      sampler=SamplerConfig(max_steps=steps, progress=False, **sampler))
+
+
+def campaign_row(device: str, seed: int, ans: dict, doc: dict, secs: float, refit: bool) -> dict:
+    """One campaign's figures from the generator's answer (ans) and discover's discrepancy.json
+    (doc): hidden and named effects, RMSE, time, and with --refit whether the refit converged and
+    how many of the hidden parameters fall inside their 95 % intervals; "candidates" holds every
+    candidate's in-sample (MAP) and held-out gains and "hidden_parameters" the generator's draw,
+    for --rows (benchmarks/gain_table.py reads them)."""
+    hidden = sorted(ans["effects"])
+    row = {"device": device, "seed": seed, "hidden": "+".join(hidden) or "none",
+           "named": "+".join(doc["named_effects"]) or "none",
+           "right": sorted(doc["named_effects"]) == hidden,
+           "seconds": secs, "rmse_before": doc["rmse_before"],
+           "rmse_after": doc["rmse_after"], "noise": ans["noise_sd_N"]}
+    if refit and hidden and row["right"]:
+        ok = [doc["effect_parameters"][n]["q2.5"] <= v <= doc["effect_parameters"][n]["q97.5"]
+              for q in ans["effects"].values() for n, v in q.items()
+              if n in doc["effect_parameters"]]
+        row["params_inside"] = f"{sum(ok)}/{len(ok)}"
+    if "refit" in doc:      # did every level's MCMC refit converge?
+        row["refit_converged"] = all(e["converged"] for e in doc["refit"])
+    best = doc["candidates"][0] if doc["candidates"] else {}
+    g = best.get("elpd_gain")
+    row["best"] = f"{best.get('effect')} " + (f"{g:+.1f}" if g is not None else
+                                             f"MAP {best.get('map_gain', 0):+.1f}")
+    row["per_unit"] = {c["effect"]: [round(g, 1) for g in c["gain_per_unit"]]
+                       for c in doc["candidates"][:2]}
+    row["map_gain"] = {c["effect"]: round(c["map_gain"], 1) for c in doc["candidates"][:2]}
+    row["candidates"] = [{k: c[k] for k in ("effect", "n_params", "map_gain", "elpd_gain",
+                                            "gain_per_unit", "screened_out")}
+                         for c in doc["candidates"]]
+    row["hidden_parameters"] = {e: dict(q) for e, q in ans["effects"].items()}
+    return row
+
+
+class RowLog(list):
+    """The rows so far; with a path, all of them rewritten there as JSON lines after each
+    campaign (atomically: an interrupted run leaves the rows of its finished campaigns)."""
+
+    def __init__(self, path: Path | None):
+        super().__init__()
+        self.path = path
+
+    def append(self, row: dict) -> None:
+        super().append(row)
+        if self.path is not None:
+            atomic.write_text(self.path, "".join(json.dumps(r, default=float) + "\n" for r in self))
 
 
 def main(argv=None) -> int:
@@ -101,11 +152,22 @@ def main(argv=None) -> int:
     ap.add_argument("--sampler", choices=["chains", "ensemble", "both"], default="chains")
     ap.add_argument("--verbose", action="store_true", help="also the top two candidates' gain per "
                     "held-out unit and the decision's reason")
+    ap.add_argument("--rows", type=Path, default=None, metavar="PATH", help="also write every "
+                    "campaign's row (every candidate's in-sample and held-out gains, the hidden "
+                    "parameters) to PATH as JSON lines, after each campaign; "
+                    "benchmarks/gain_table.py tabulates them")
     a = ap.parse_args(argv)
+    if a.rows is not None:      # refused before any campaign runs
+        if a.rows.is_dir():
+            ap.error(f"--rows {a.rows}: a folder; give a file path")
+        try:
+            atomic.writable_parent(a.rows, create=False)
+        except InputError as e:
+            ap.error(f"--rows: {e}")
     samplers = ["ensemble", "chains"] if a.sampler == "both" else [a.sampler]
     cfgs = {sm: bench_config(a.full, a.samples_per_cycle, a.max_steps, a.simulate_at, SAMPLERS[sm])
             for sm in samplers}
-    rows = []
+    rows = RowLog(a.rows)
     with tempfile.TemporaryDirectory() as tmp:
         for dev in a.devices:
             for eff in a.effects:
@@ -122,26 +184,7 @@ def main(argv=None) -> int:
                                        extra_effects=tuple(a.extra_effects), max_effects=a.max_effects,
                                        jobs=a.jobs)
                         secs = time.perf_counter() - t0
-                        hidden = sorted(ans["effects"])
-                        row = {"device": dev, "hidden": "+".join(hidden) or "none",
-                               "named": "+".join(doc["named_effects"]) or "none",
-                               "right": sorted(doc["named_effects"]) == hidden,
-                               "seconds": secs, "rmse_before": doc["rmse_before"],
-                               "rmse_after": doc["rmse_after"], "noise": ans["noise_sd_N"]}
-                        if a.refit and eff and row["right"]:
-                            ok = [doc["effect_parameters"][n]["q2.5"] <= v <= doc["effect_parameters"][n]["q97.5"]
-                                  for q in ans["effects"].values() for n, v in q.items()
-                                  if n in doc["effect_parameters"]]
-                            row["params_inside"] = f"{sum(ok)}/{len(ok)}"
-                        if "refit" in doc:      # did every level's MCMC refit converge?
-                            row["refit_converged"] = all(e["converged"] for e in doc["refit"])
-                        best = doc["candidates"][0] if doc["candidates"] else {}
-                        g = best.get("elpd_gain")
-                        row["best"] = f"{best.get('effect')} " + (f"{g:+.1f}" if g is not None else
-                                                                 f"MAP {best.get('map_gain', 0):+.1f}")
-                        row["per_unit"] = {c["effect"]: [round(g, 1) for g in c["gain_per_unit"]]
-                                           for c in doc["candidates"][:2]}
-                        row["map_gain"] = {c["effect"]: round(c["map_gain"], 1) for c in doc["candidates"][:2]}
+                        row = campaign_row(dev, seed, ans, doc, secs, a.refit)
                         rows.append(row)
                         print(f"{dev + ('/' + sm if len(samplers) > 1 else ''):<5} hidden {row['hidden']:<19} named {row['named']:<19} "
                               f"best {row['best']:<28} RMSE {row['rmse_before']:8.1f} -> "

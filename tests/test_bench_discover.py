@@ -49,3 +49,71 @@ def test_the_short_campaigns_run_the_ci_cases_configuration():
     # tests/discover_check.py's configuration
     ci = FitConfig(samples_per_cycle=100, sampler=SamplerConfig(max_steps=3000, progress=False))
     assert short.to_json() == ci.to_json()
+
+
+def _gain_table():
+    spec = importlib.util.spec_from_file_location("gain_table", ROOT / "benchmarks" / "gain_table.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _doc(named, gains):
+    """A discrepancy.json's fields that campaign_row reads; the candidates built by discover's own
+    row function from screen.rank's fields (so that a renamed field fails here)."""
+    from frictionuq.discrepancy.discover import _candidate_rows
+    ranked = [{"effect": e, "elpd_gain": None, "elpd_gain_se": None, "rmse_baseline": 20.0,
+               "rmse_map": 19.0, "gain_per_unit": [], "map_gain": g, "screened_out": True,
+               "n_params": k} for e, k, g in gains]
+    return {"named_effects": named, "rmse_before": 21.0, "rmse_after": 20.5,
+            "candidates": _candidate_rows(ranked)}
+
+
+def _ans(hidden):
+    return {"effects": {e: {"p2": 2.5} for e in hidden}, "noise_sd_N": 21.3}
+
+
+def test_rows_keep_every_candidates_gains_and_the_gain_table_reads_them(tmp_path):
+    bd, gt = _bench_discover(), _gain_table()
+    runs = [  # (hidden, named, [(candidate, parameters, in-sample gain)])
+        ([], [], [("eccentricity", 3, 6.2), ("stage2_nonlinear", 1, 1.9)]),
+        ([], [], [("eccentricity", 3, 3.4), ("stage2_nonlinear", 1, 0.1)]),
+        (["stage2_nonlinear"], ["stage2_nonlinear"], [("stage2_nonlinear", 1, 25.7), ("eccentricity", 3, 2.0)]),
+        (["stage2_nonlinear"], [], [("stage2_nonlinear", 1, 13.6), ("eccentricity", 3, 7.0)]),
+        (["stage2_nonlinear"], [], [("stage2_nonlinear", 1, 1.5), ("eccentricity", 3, 0.5)]),
+        (["thermal_fade"], ["thermal_fade"], [("eccentricity", 3, 121.3), ("stage2_nonlinear", 1, 40.0)]),
+    ]
+    log = bd.RowLog(tmp_path / "rows.jsonl")
+    for seed, (hidden, named, gains) in enumerate(runs):
+        row = bd.campaign_row("mfd", seed, _ans(hidden), _doc(named, gains), 1.0, False)
+        log.append(row)
+        assert [c["map_gain"] for c in row["candidates"]] == [g for _, _, g in gains]
+        assert row["right"] == (sorted(named) == sorted(hidden))
+    assert row["hidden_parameters"] == {"thermal_fade": {"p2": 2.5}}
+    rows = gt.read_rows([tmp_path / "rows.jsonl"])
+    assert len(rows) == len(runs)      # every campaign's row, rewritten after each
+    table = {t["effect"]: t for t in gt.gain_table(rows)}
+    s2 = table["stage2_nonlinear"]
+    # the thermal_fade campaign is neither clean nor stage2's: left out of both columns
+    assert (s2["clean_n"], s2["clean_max"], s2["hidden_n"]) == (2, 1.9, 3)
+    assert (s2["hidden_min"], s2["hidden_median"], s2["hidden_named"]) == (1.5, 13.6, 1)
+    assert s2["hidden_above_clean"] == 2     # 25.7 and 13.6 above 1.9; 1.5 not
+    assert abs(s2["chi2_ref"] - 5.414) < 1e-3      # chi2(1) 99.9 % point 10.83, halved
+    assert table["eccentricity"]["clean_max"] == 6.2 and table["eccentricity"]["hidden_n"] == 0
+
+
+def test_bad_rows_arguments_are_refused_in_one_line(tmp_path, capsys):
+    import pytest
+    bd, gt = _bench_discover(), _gain_table()
+    with pytest.raises(SystemExit) as e:     # before any campaign is generated
+        bd.main(["--rows", str(tmp_path), "--seeds", "1"])
+    assert e.value.code == 2 and "a folder" in capsys.readouterr().err
+    bad = tmp_path / "bad.jsonl"
+    bad.write_text('{"hidden": "none", "candidates": []}\nnot json\n')
+    with pytest.raises(SystemExit) as e:
+        gt.main([str(bad)])
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and "bad.jsonl, line 2: not JSON" in err
+    with pytest.raises(SystemExit) as e:
+        gt.main([str(tmp_path / "missing.jsonl")])
+    assert e.value.code == 2 and "no such file" in capsys.readouterr().err
