@@ -7,7 +7,7 @@ wall time, then the hit rate and false-alarm count, in one run.
         [--effects none eccentricity ...] [--extra-effects takeup_overshoot] [--simulate-at raw|kept]
         [--also chatter --max-effects 2] [--chatter-form bursts] [--jobs 2]
         [--samples-per-cycle 400] [--max-steps 3000] [--sampler chains|ensemble|both] [--verbose]
-        [--rows ROWS.jsonl]
+        [--rows ROWS.jsonl] [--score-all]
 
 --full: full-length records (two harmonics of ~5,000 samples and a Kobe replay, the issue's speed
 case) under the CLI's own configuration (`frictionuq discover CAMPAIGN --out DIR`: 400 samples
@@ -27,12 +27,15 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import tempfile
 import time
 from pathlib import Path
+from unittest import mock
 
 from frictionuq import atomic
 from frictionuq import params as P
+from frictionuq.discrepancy import screen
 from frictionuq.discrepancy.discover import discover
 from frictionuq.discrepancy.hidden import hidden_campaign
 from frictionuq.errors import InputError
@@ -152,6 +155,10 @@ def main(argv=None) -> int:
     ap.add_argument("--sampler", choices=["chains", "ensemble", "both"], default="chains")
     ap.add_argument("--verbose", action="store_true", help="also the top two candidates' gain per "
                     "held-out unit and the decision's reason")
+    ap.add_argument("--score-all", action="store_true", help="score every candidate held out, "
+                    "whatever its in-sample gain (screen.STAGE1_MIN_GAIN lowered to -inf; the "
+                    "decision rule unchanged, rule (e) included): the held-out gains of "
+                    "candidates stage 1 would not score, e.g. on clean campaigns; slower")
     ap.add_argument("--rows", type=Path, default=None, metavar="PATH", help="also write every "
                     "campaign's row (every candidate's in-sample and held-out gains, the hidden "
                     "parameters) to PATH as JSON lines, after each campaign; "
@@ -168,7 +175,9 @@ def main(argv=None) -> int:
     cfgs = {sm: bench_config(a.full, a.samples_per_cycle, a.max_steps, a.simulate_at, SAMPLERS[sm])
             for sm in samplers}
     rows = RowLog(a.rows)
-    with tempfile.TemporaryDirectory() as tmp:
+    # --score-all: every candidate scored held out (the rule unchanged); restored after the runs
+    with mock.patch.object(screen, "STAGE1_MIN_GAIN", -math.inf if a.score_all else
+                           screen.STAGE1_MIN_GAIN), tempfile.TemporaryDirectory() as tmp:
         for dev in a.devices:
             for eff in a.effects:
                 eff = None if eff in (None, "none") else eff
@@ -185,6 +194,7 @@ def main(argv=None) -> int:
                                        jobs=a.jobs)
                         secs = time.perf_counter() - t0
                         row = campaign_row(dev, seed, ans, doc, secs, a.refit)
+                        row["score_all"] = a.score_all
                         rows.append(row)
                         print(f"{dev + ('/' + sm if len(samplers) > 1 else ''):<5} hidden {row['hidden']:<19} named {row['named']:<19} "
                               f"best {row['best']:<28} RMSE {row['rmse_before']:8.1f} -> "

@@ -49,12 +49,15 @@ def gain_table(rows: list[dict]) -> list[dict]:
     """Per (effect, device) seen among the rows' candidates: the effect's in-sample gains (nats)
     on the clean campaigns ("clean": hidden none) and on those with it alone hidden ("hidden"),
     with how many of the latter it was named in and how many lie above every clean gain; the
-    chi2 reference (module docstring). Campaigns with another effect hidden are left out (there
+    chi2 reference (module docstring); and its held-out gains where it was scored held out
+    ("*_heldout_*": stage 1 scores only candidates above MIN_GAIN in-sample, --score-all every
+    one). Campaigns with another effect hidden are left out (there
     a candidate's gain is its share of another effect's gap, not a null)."""
     out = []
     keys = sorted({(c["effect"], r["device"]) for r in rows for c in r["candidates"]})
     for eff, dev in keys:
         clean, hidden, named, k = [], [], 0, None
+        clean_ho, hidden_ho = [], []      # held-out gains, where scored (--score-all: always)
         for r in rows:
             if r["device"] != dev:
                 continue
@@ -64,9 +67,13 @@ def gain_table(rows: list[dict]) -> list[dict]:
             k = c["n_params"]
             if r["hidden"] == "none":
                 clean.append(c["map_gain"])
+                if c["elpd_gain"] is not None:
+                    clean_ho.append(c["elpd_gain"])
             elif r["hidden"] == eff:
                 hidden.append(c["map_gain"])
                 named += r["named"] == eff
+                if c["elpd_gain"] is not None:
+                    hidden_ho.append(c["elpd_gain"])
         cmax = max(clean) if clean else None
         out.append({"effect": eff, "device": dev, "n_params": k,
                     "chi2_ref": float(chi2.ppf(0.999, k) / 2),
@@ -76,7 +83,12 @@ def gain_table(rows: list[dict]) -> list[dict]:
                     "hidden_median": float(np.median(hidden)) if hidden else None,
                     "hidden_named": named,
                     "hidden_above_clean": (sum(g > cmax for g in hidden) if clean and hidden
-                                           else None)})
+                                           else None),
+                    "clean_heldout_n": len(clean_ho),
+                    "clean_heldout_max": max(clean_ho) if clean_ho else None,
+                    "hidden_heldout_n": len(hidden_ho),
+                    "hidden_heldout_min": min(hidden_ho) if hidden_ho else None,
+                    "hidden_heldout_median": float(np.median(hidden_ho)) if hidden_ho else None})
     return out
 
 
@@ -98,12 +110,16 @@ def main(argv=None) -> int:
     print(f"{len(rows)} campaigns ({sum(r['hidden'] == 'none' for r in rows)} clean); in-sample "
           "(MAP) gains over the baseline, nats")
     print(f"{'effect':<20} {'dev':<5} {'k':>2} {'chi2':>5} | {'clean n':>7} {'max':>7} {'q90':>7} | "
-          f"{'hidden n':>8} {'min':>7} {'median':>7} {'named':>5} {'> clean max':>11}")
+          f"{'hidden n':>8} {'min':>7} {'median':>7} {'named':>5} {'> clean max':>11} | held out: "
+          f"{'clean n':>7} {'max':>7} | {'hidden n':>8} {'min':>7} {'median':>7}")
     for t in gain_table(rows):
         print(f"{t['effect']:<20} {t['device']:<5} {t['n_params']:>2} {t['chi2_ref']:5.1f} | "
               f"{t['clean_n']:>7} {_f(t['clean_max']):>7} {_f(t['clean_q90']):>7} | "
               f"{t['hidden_n']:>8} {_f(t['hidden_min']):>7} {_f(t['hidden_median']):>7} "
-              f"{t['hidden_named']:>5} {_f(t['hidden_above_clean'], 'd'):>11}")
+              f"{t['hidden_named']:>5} {_f(t['hidden_above_clean'], 'd'):>11} | "
+              f"{'':>10}{t['clean_heldout_n']:>7} {_f(t['clean_heldout_max']):>7} | "
+              f"{t['hidden_heldout_n']:>8} {_f(t['hidden_heldout_min']):>7} "
+              f"{_f(t['hidden_heldout_median']):>7}")
     return 0
 
 

@@ -58,13 +58,15 @@ def _gain_table():
     return mod
 
 
-def _doc(named, gains):
+def _doc(named, gains, heldout=None):
     """A discrepancy.json's fields that campaign_row reads; the candidates built by discover's own
-    row function from screen.rank's fields (so that a renamed field fails here)."""
+    row function from screen.rank's fields (so that a renamed field fails here). heldout:
+    {effect: held-out gain} of the candidates scored held out."""
     from frictionuq.discrepancy.discover import _candidate_rows
-    ranked = [{"effect": e, "elpd_gain": None, "elpd_gain_se": None, "rmse_baseline": 20.0,
-               "rmse_map": 19.0, "gain_per_unit": [], "map_gain": g, "screened_out": True,
-               "n_params": k} for e, k, g in gains]
+    heldout = heldout or {}
+    ranked = [{"effect": e, "elpd_gain": heldout.get(e), "elpd_gain_se": None, "rmse_baseline": 20.0,
+               "rmse_map": 19.0, "gain_per_unit": [], "map_gain": g,
+               "screened_out": e not in heldout, "n_params": k} for e, k, g in gains]
     return {"named_effects": named, "rmse_before": 21.0, "rmse_after": 20.5,
             "candidates": _candidate_rows(ranked)}
 
@@ -76,18 +78,20 @@ def _ans(hidden):
 def test_rows_keep_every_candidates_gains_and_the_gain_table_reads_them(tmp_path):
     bd, gt = _bench_discover(), _gain_table()
     runs = [  # (hidden, named, [(candidate, parameters, in-sample gain)])
-        ([], [], [("eccentricity", 3, 6.2), ("stage2_nonlinear", 1, 1.9)]),
+        ([], [], [("eccentricity", 3, 6.2), ("stage2_nonlinear", 1, 1.9)], {"stage2_nonlinear": -3.0}),
         ([], [], [("eccentricity", 3, 3.4), ("stage2_nonlinear", 1, 0.1)]),
-        (["stage2_nonlinear"], ["stage2_nonlinear"], [("stage2_nonlinear", 1, 25.7), ("eccentricity", 3, 2.0)]),
+        (["stage2_nonlinear"], ["stage2_nonlinear"], [("stage2_nonlinear", 1, 25.7), ("eccentricity", 3, 2.0)],
+         {"stage2_nonlinear": 25.5}),
         (["stage2_nonlinear"], [], [("stage2_nonlinear", 1, 13.6), ("eccentricity", 3, 7.0)]),
         (["stage2_nonlinear"], [], [("stage2_nonlinear", 1, 1.5), ("eccentricity", 3, 0.5)]),
         (["thermal_fade"], ["thermal_fade"], [("eccentricity", 3, 121.3), ("stage2_nonlinear", 1, 40.0)]),
     ]
     log = bd.RowLog(tmp_path / "rows.jsonl")
-    for seed, (hidden, named, gains) in enumerate(runs):
-        row = bd.campaign_row("mfd", seed, _ans(hidden), _doc(named, gains), 1.0, False)
+    for seed, (hidden, named, gains, *ho) in enumerate(runs):
+        row = bd.campaign_row("mfd", seed, _ans(hidden), _doc(named, gains, *ho), 1.0, False)
         log.append(row)
         assert [c["map_gain"] for c in row["candidates"]] == [g for _, _, g in gains]
+        assert [c["elpd_gain"] for c in row["candidates"]] == [(ho or [{}])[0].get(e) for e, _, _ in gains]
         assert row["right"] == (sorted(named) == sorted(hidden))
     assert row["hidden_parameters"] == {"thermal_fade": {"p2": 2.5}}
     rows = gt.read_rows([tmp_path / "rows.jsonl"])
@@ -99,6 +103,9 @@ def test_rows_keep_every_candidates_gains_and_the_gain_table_reads_them(tmp_path
     assert (s2["hidden_min"], s2["hidden_median"], s2["hidden_named"]) == (1.5, 13.6, 1)
     assert s2["hidden_above_clean"] == 2     # 25.7 and 13.6 above 1.9; 1.5 not
     assert abs(s2["chi2_ref"] - 5.414) < 1e-3      # chi2(1) 99.9 % point 10.83, halved
+    # held-out gains only where scored: one clean, one hidden
+    assert (s2["clean_heldout_n"], s2["clean_heldout_max"]) == (1, -3.0)
+    assert (s2["hidden_heldout_n"], s2["hidden_heldout_min"], s2["hidden_heldout_median"]) == (1, 25.5, 25.5)
     assert table["eccentricity"]["clean_max"] == 6.2 and table["eccentricity"]["hidden_n"] == 0
 
 
@@ -117,3 +124,26 @@ def test_bad_rows_arguments_are_refused_in_one_line(tmp_path, capsys):
     with pytest.raises(SystemExit) as e:
         gt.main([str(tmp_path / "missing.jsonl")])
     assert e.value.code == 2 and "no such file" in capsys.readouterr().err
+
+
+def test_score_all_scores_every_candidate_and_leaves_the_rule(tmp_path, monkeypatch, capsys):
+    """--score-all lowers only stage 1's threshold while discover runs (rule (e) keeps MIN_GAIN),
+    restores it afterwards, and the row says it was on."""
+    from frictionuq.discrepancy import screen
+    bd = _bench_discover()
+    seen = []
+
+    def fake_discover(*args, **kw):
+        seen.append((screen.STAGE1_MIN_GAIN, screen.MIN_GAIN))
+        return {**_doc([], [("stage2_nonlinear", 1, 1.0)]),
+                "seconds_by_stage": {"screening": 1.0}, "reason": "none", "rounds": [{}]}
+
+    monkeypatch.setattr(bd, "discover", fake_discover)
+    monkeypatch.setattr(bd, "hidden_campaign", lambda *a, **k: _ans([]))
+    before = screen.STAGE1_MIN_GAIN
+    for flag in (["--score-all"], []):
+        bd.main(flag + ["--seeds", "1", "--devices", "brfd", "--effects", "none",
+                        "--rows", str(tmp_path / "rows.jsonl")])
+        assert _gain_table().read_rows([tmp_path / "rows.jsonl"])[0]["score_all"] == bool(flag)
+    assert seen == [(float("-inf"), screen.MIN_GAIN), (before, screen.MIN_GAIN)]
+    assert screen.STAGE1_MIN_GAIN == before == screen.MIN_GAIN
