@@ -96,6 +96,8 @@ def campaign_row(device: str, seed: int, ans: dict, doc: dict, secs: float, refi
                                             "gain_per_unit", "screened_out")}
                          for c in doc["candidates"]]
     row["hidden_parameters"] = {e: dict(q) for e, q in ans["effects"].items()}
+    # what made it: the package, discover's configuration and seed, the machine
+    row["made_by"] = {k: doc.get(k) for k in ("package_version", "config", "seed", "environment")}
     return row
 
 

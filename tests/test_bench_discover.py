@@ -68,7 +68,8 @@ def _doc(named, gains, heldout=None):
                "rmse_map": 19.0, "gain_per_unit": [], "map_gain": g,
                "screened_out": e not in heldout, "n_params": k} for e, k, g in gains]
     return {"named_effects": named, "rmse_before": 21.0, "rmse_after": 20.5,
-            "candidates": _candidate_rows(ranked)}
+            "candidates": _candidate_rows(ranked), "package_version": "0.test", "seed": 1,
+            "config": {"samples_per_cycle": 100.0}, "environment": {"numba_cpu": "generic"}}
 
 
 def _ans(hidden):
@@ -94,6 +95,9 @@ def test_rows_keep_every_candidates_gains_and_the_gain_table_reads_them(tmp_path
         assert [c["elpd_gain"] for c in row["candidates"]] == [(ho or [{}])[0].get(e) for e, _, _ in gains]
         assert row["right"] == (sorted(named) == sorted(hidden))
     assert row["hidden_parameters"] == {"thermal_fade": {"p2": 2.5}}
+    assert row["made_by"] == {"package_version": "0.test", "seed": 1,
+                              "config": {"samples_per_cycle": 100.0},
+                              "environment": {"numba_cpu": "generic"}}
     rows = gt.read_rows([tmp_path / "rows.jsonl"])
     assert len(rows) == len(runs)      # every campaign's row, rewritten after each
     table = {t["effect"]: t for t in gt.gain_table(rows)}
