@@ -158,7 +158,8 @@ def main(argv=None) -> int:
     ap.add_argument("--verbose", action="store_true", help="also the top two candidates' gain per "
                     "held-out unit and the decision's reason")
     ap.add_argument("--score-all", action="store_true", help="score every candidate held out, "
-                    "whatever its in-sample gain (screen.STAGE1_MIN_GAIN lowered to -inf; the "
+                    "whatever its in-sample gain (screen.STAGE1_MIN_GAIN, a cap on each effect's "
+                    "stage-1 threshold, lowered to -inf; the "
                     "decision rule unchanged, rule (e) included): the held-out gains of "
                     "candidates stage 1 would not score, e.g. on clean campaigns; slower")
     ap.add_argument("--rows", type=Path, default=None, metavar="PATH", help="also write every "

@@ -58,6 +58,10 @@ def test_cli_discover_on_a_clean_mfd_campaign(tmp_path, capsys):
     assert doc["alternatives"] == [] and doc["environment"]["numba_cpu"]
     html = (tmp_path / "out" / "report.html").read_text()
     assert "Named effect: none" in html and "frictionuq" in html and "seed 1" in html
+    # each candidate's threshold (screen.min_gain): lower for an effect whose null is regular
+    needs = {c["effect"]: c["min_gain"] for c in doc["candidates"]}
+    assert needs["eccentricity"] == 20.0 and 5.0 < needs["stage2_nonlinear"] < 5.5, needs
+    assert "needs (nats)" in out and "gain the rule asks" in html
     # the level's tests taken together (combine.py): in the document and on the page
     assert [c["model"] for c in doc["combined_diagnostics"]] == ["baseline"]
     assert "tests combined" in html

@@ -78,6 +78,37 @@ def test_decision_rule():
     assert screen.decide([{**at, "effect": "chatter"}])[0] == "chatter"
 
 
+def test_an_effect_with_a_regular_null_is_asked_for_the_chi2_bound():
+    """Rules (a), (b), (e) for an effect whose every parameter has a neutral value (params.
+    REGULAR_NULL): its total gain, held out and in its MAP, must pass half the 99.9 % point of
+    chi2 with its number of parameters instead of MIN_GAIN, and its gain need not be spread over
+    the units; its loss guard, the RMSE rule and the ranking stay. The gains are those of the
+    hidden stage2_nonlinear at BRFD seed 12 (--score-all, docs/log-discrepancy.md)."""
+    from scipy.stats import chi2
+    from frictionuq import params as P
+    assert P.REGULAR_NULL == {"stage2_nonlinear", "applied_tracking"}
+    c = screen.min_gain("stage2_nonlinear")
+    assert c == pytest.approx(chi2.ppf(0.999, 1) / 2) and 5.0 < c < 5.5
+    assert screen.min_gain("eccentricity") == screen.MIN_GAIN == 20.0
+    s2 = _row("stage2_nonlinear", [-1.0, 6.8, 9.3], 1, map_gain=16.3)
+    name, why = screen.decide([s2, _row("thermal_fade", [1.5, 0.1, -0.1], map_gain=0.0)])
+    assert name == "stage2_nonlinear" and "-1.0, 6.8, 9.3" in why
+    # the same gains for an effect with a parameter free when it is off: refused
+    assert screen.decide([{**s2, "effect": "reversal_hump", "n_params": 2}])[0] == "none"
+    # below the bound, held out or in the MAP: refused, and the reason gives the thresholds
+    name, why = screen.decide([_row("stage2_nonlinear", [-1.0, 3.0, 2.9], 1, map_gain=16.3)])
+    assert name == "none" and f"stage2_nonlinear: {c:.1f}" in why
+    assert screen.decide([{**s2, "map_gain": 5.0}])[0] == "none"
+    # a held-out unit lost by more than MAX_UNIT_LOSS, or the RMSE not lowered: refused
+    assert screen.decide([_row("stage2_nonlinear", [-5.5, 12.0, 14.0], 1, map_gain=30.0)])[0] == "none"
+    assert screen.decide([{**s2, "rmse_map": 2.0}])[0] == "none"
+    # a stronger candidate that fails the rule is not passed over for it (c)
+    name, why = screen.decide([_row("eccentricity", [40.0, 30.0, -8.0], 3), s2])
+    assert name == "none" and "weaker" in why
+    # stage 1 scores a regular effect above its own bound: the log's threshold is its own
+    assert screen._stage1_min_gain("stage2_nonlinear") == c
+
+
 def test_the_other_candidates_passing_the_rule_are_listed_with_the_name():
     """screen.alternatives and the naming reason: the real 70 lb records of dataset 1, round 2
     against 3-stage + chatter (docs/log-discrepancy.md, 2026-11-29), whose name turned on the

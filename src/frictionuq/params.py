@@ -136,6 +136,15 @@ NEEDS_APPLIED = frozenset({"applied_tracking"})
 BEYOND_SPEC = frozenset({"takeup_overshoot", "speed_weakening", "chatter"})
 #: effects on the measurement noise only (the force model is unchanged)
 NOISE_EFFECTS = frozenset(_p.effect for _p in _NOISE_EFFECT_PARAMS)
+#: effects whose every parameter has a neutral value: with the effect off none of its parameters
+#: is left free (unidentified), so on data without it the log-likelihood ratio of the effect's
+#: best fit follows Wilks's chi2 with its number of parameters (half of that tail when a neutral
+#: value lies on its bound, as beta_app's 0). An effect with a parameter that is free when it is
+#: off (thermal_fade's e_fade, eccentricity's period and phase, ...) has no such law: it searches
+#: a family of shapes for the noise to fit. discrepancy.screen.min_gain sets the decision rule's
+#: threshold from this (docs/log-discrepancy.md, 2026-12-04, night)
+REGULAR_NULL = frozenset(e for e, names in EFFECTS.items()
+                         if all(PARAMS[n].neutral is not None for n in names))
 #: effects that only make sense with the backlash stages
 NEEDS_BACKLASH = frozenset({"stage2_nonlinear", "takeup_overshoot"})
 

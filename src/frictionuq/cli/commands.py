@@ -178,13 +178,14 @@ def _cmd_discover(a):
                  jobs=a.jobs, check_seeds=tuple(a.check_seed or ()),
                  log=lambda m: print(m, file=sys.stderr))
     print(f"{'candidate':<20}{'ELPD gain (nats)':>18}{'SE':>10}{'MAP gain (nats)':>17}"
-          f"{'RMSE after (N)':>16}")
+          f"{'needs (nats)':>14}{'RMSE after (N)':>16}")
     for c in d["candidates"]:
         if c["screened_out"]:      # stage 1: no better in-sample fit, not scored held out
             gain, se = f"{'not scored':>18}", f"{'':>10}"
         else:
             gain, se = f"{c['elpd_gain']:18.1f}", f"{c['elpd_gain_se']:10.1f}"
-        print(f"{c['effect']:<20}{gain}{se}{c['map_gain']:17.1f}{c['rmse_after']:16.4g}")
+        print(f"{c['effect']:<20}{gain}{se}{c['map_gain']:17.1f}{c['min_gain']:14.1f}"
+              f"{c['rmse_after']:16.4g}")
     print(f"named effect: {d['named_effect']} ({d['reason']})")
     for r in d["rounds"][1:]:
         print(f"round {r['round']} (against 3-stage + {' + '.join(r['baseline_effects'])}): "

@@ -201,7 +201,7 @@ def _candidate_rows(ranked) -> list[dict]:
              "rmse_before": r["rmse_baseline"], "rmse_after": r["rmse_map"],
              "gain_per_unit": r["gain_per_unit"],
              "map_gain": r["map_gain"], "screened_out": r["screened_out"],
-             "n_params": r["n_params"]} for r in ranked]
+             "n_params": r["n_params"], "min_gain": screen.min_gain(r["effect"])} for r in ranked]
 
 
 def _screen_rounds(specs, cfg, seed, effects, extra_effects, max_effects, log,

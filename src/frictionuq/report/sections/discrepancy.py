@@ -88,10 +88,13 @@ def _candidates(cands: list[dict], caption: str) -> dict:
         caption += f"; the baseline's RMSE at its MAP {num(cands[0]['rmse_before'])} N"
     rows = [(c["effect"], "not scored (MAP gain too small)" if c.get("screened_out") else num(c["elpd_gain"]),
              num(c["elpd_gain_se"]), ", ".join(num(g) for g in c["gain_per_unit"]) or num(None),
-             num(c["map_gain"]) if "map_gain" in c else "-", num(c["rmse_after"]), c["n_params"])
+             num(c["map_gain"]) if "map_gain" in c else "-",
+             num(c["min_gain"]) if c.get("min_gain") is not None else "-",
+             num(c["rmse_after"]), c["n_params"])
             for c in cands]
     return B.html(table(["candidate effect", "held-out ELPD gain (nats)", "SE (nats)",
                          "gain per held-out unit (nats)", "MAP gain on all units (nats)",
+                         "gain the rule asks, held out and at the MAP (nats)",
                          "RMSE at its MAP (N)", "parameters"], rows, caption=caption))
 
 
