@@ -12,7 +12,7 @@ import numpy as np
 from frictionuq.campaign import load_campaign
 from frictionuq.discrepancy import fits
 from frictionuq.discrepancy.hidden import hidden_campaign
-from frictionuq.params import BEYOND_SPEC, EFFECTS, NOISE_EFFECTS
+from frictionuq.params import BEYOND_SPEC, EFFECTS, NOISE_EFFECTS, REGULAR_NULL
 
 
 def check_discover(tmp_path, device, effect, seed, refit, also=None, max_effects=1):
@@ -23,8 +23,8 @@ def check_discover(tmp_path, device, effect, seed, refit, also=None, max_effects
     always fails; the false-alarm guard is the decision rule (screen.py), measured on the clean
     campaigns of benchmarks/bench_discover.py: 0 false alarms in 100 short ones (one-sided 95 %
     bound 3 %; docs/log-discrepancy.md). The CI's hidden-effect cases are not a random sample of
-    that benchmark: stage2_nonlinear, named on 3 of 26 short campaigns, is not among them (the
-    README's hit-rate table says so); the larger set (every effect, both devices, refits) is
+    that benchmark: stage2_nonlinear's case (BRFD seed 12) was added on 2026-12-04 with the
+    regular effects' threshold (screen.min_gain); the larger set (every effect, both devices, refits) is
     that benchmark. With max_effects > 1, discover names effects one per
     round (forward selection): a second hidden effect (`also`) is named too, and the gap checks
     are those of the model with both; with one hidden effect the next round says none."""
@@ -134,10 +134,14 @@ def check_discover(tmp_path, device, effect, seed, refit, also=None, max_effects
     if any(e not in NOISE_EFFECTS for e in hidden):
         assert doc["rmse_after"] < doc["rmse_before"]
         # the gap shrinks per test too (as in the decision rule, an effect may leave no trace in
-        # one test: all but one improved, none made worse by more than 5 %), loops of both drawn
+        # one test: all but one improved, none made worse by more than 5 %), loops of both drawn.
+        # An effect whose null is regular is not asked for that spread by the rule (screen.py,
+        # rule (b)), nor here: at least one test improved (a curved stage 2 shows in the replay;
+        # at BRFD seed 12 the sines' RMSE rose 0.2 % while the replay's fell 2.5 %)
         ratios = [by[(t["id"], tag)]["rmse"] / by[(t["id"], "baseline")]["rmse"]
                   for t in ans["tests"]]
-        assert sum(r < 1.0 for r in ratios) >= len(ratios) - 1 and max(ratios) < 1.05, ratios
+        need = 1 if set(hidden) <= REGULAR_NULL else len(ratios) - 1
+        assert sum(r < 1.0 for r in ratios) >= need and max(ratios) < 1.05, ratios
         for t in ans["tests"]:
             assert (tmp_path / "out" / f"loops-{t['id']}.png").stat().st_size > 10_000
     if not refit and doc["named_effects"]:
