@@ -7,7 +7,7 @@ effect and device. Not a test: figures only.
 Why: the decision rule's in-sample stage (discrepancy/screen.py, rule (e)) asked every candidate
 for the same MIN_GAIN (20 nats) over the baseline's MAP, whatever its number of parameters, until
 2026-12-04; since then an effect whose null is regular (params.REGULAR_NULL) is asked for the
-chi2 column's value instead (screen.min_gain), and this table is how that is checked. A
+chi2 column's value instead (rule.min_gain), and this table is how that is checked. A
 hidden stage2_nonlinear (one parameter) mostly stays under it (10-17 nats on short campaigns,
 docs/log-discrepancy.md), while on the clean campaigns the best candidate, mostly eccentricity
 (three parameters), reaches up to about 10. Whether a threshold per effect could separate the two

@@ -24,7 +24,7 @@ def check_discover(tmp_path, device, effect, seed, refit, also=None, max_effects
     campaigns of benchmarks/bench_discover.py: 0 false alarms in 100 short ones (one-sided 95 %
     bound 3 %; docs/log-discrepancy.md). The CI's hidden-effect cases are not a random sample of
     that benchmark: stage2_nonlinear's case (BRFD seed 12) was added on 2026-12-04 with the
-    regular effects' threshold (screen.min_gain); the larger set (every effect, both devices, refits) is
+    regular effects' threshold (rule.min_gain); the larger set (every effect, both devices, refits) is
     that benchmark. With max_effects > 1, discover names effects one per
     round (forward selection): a second hidden effect (`also`) is named too, and the gap checks
     are those of the model with both; with one hidden effect the next round says none."""
@@ -49,7 +49,7 @@ def check_discover(tmp_path, device, effect, seed, refit, also=None, max_effects
     assert sum(st.values()) <= doc["seconds"]
     assert (st["refit"] > 1.0) == refit, st
     assert doc["environment"]["packages"]["numba"] and doc["environment"]["numba_cpu"]
-    # the other candidates passing the rule, listed beside each round's name (screen.alternatives)
+    # the other candidates passing the rule, listed beside each round's name (rule.alternatives)
     for r in [doc] + doc["rounds"]:
         named_r = r["named_effect"]
         assert all(a["effect"] != named_r for a in r["alternatives"])

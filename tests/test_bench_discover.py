@@ -60,7 +60,7 @@ def _gain_table():
 
 def _doc(named, gains, heldout=None):
     """A discrepancy.json's fields that campaign_row reads; the candidates built by discover's own
-    row function from screen.rank's fields (so that a renamed field fails here). heldout:
+    row function from rule.rank's fields (so that a renamed field fails here). heldout:
     {effect: held-out gain} of the candidates scored held out."""
     from frictionuq.discrepancy.discover import _candidate_rows
     heldout = heldout or {}
@@ -133,13 +133,13 @@ def test_bad_rows_arguments_are_refused_in_one_line(tmp_path, capsys):
 def test_score_all_scores_every_candidate_and_leaves_the_rule(tmp_path, monkeypatch, capsys):
     """--score-all lowers only stage 1's threshold while discover runs (rule (e) keeps each
     effect's min_gain), restores it afterwards, and the row says it was on."""
-    from frictionuq.discrepancy import screen
+    from frictionuq.discrepancy import rule, screen
     bd = _bench_discover()
     seen = []
 
     def fake_discover(*args, **kw):
         seen.append((screen.STAGE1_MIN_GAIN, screen._stage1_min_gain("eccentricity"),
-                     screen._stage1_min_gain("stage2_nonlinear"), screen.min_gain("stage2_nonlinear")))
+                     screen._stage1_min_gain("stage2_nonlinear"), rule.min_gain("stage2_nonlinear")))
         return {**_doc([], [("stage2_nonlinear", 1, 1.0)]),
                 "seconds_by_stage": {"screening": 1.0}, "reason": "none", "rounds": [{}]}
 
@@ -150,7 +150,7 @@ def test_score_all_scores_every_candidate_and_leaves_the_rule(tmp_path, monkeypa
         bd.main(flag + ["--seeds", "1", "--devices", "brfd", "--effects", "none",
                         "--rows", str(tmp_path / "rows.jsonl")])
         assert _gain_table().read_rows([tmp_path / "rows.jsonl"])[0]["score_all"] == bool(flag)
-    s2 = screen.min_gain("stage2_nonlinear")
+    s2 = rule.min_gain("stage2_nonlinear")
     inf = float("inf")
-    assert seen == [(-inf, -inf, -inf, s2), (inf, screen.MIN_GAIN, s2, s2)]
+    assert seen == [(-inf, -inf, -inf, s2), (inf, rule.MIN_GAIN, s2, s2)]
     assert screen.STAGE1_MIN_GAIN == before == inf

@@ -30,7 +30,7 @@ from frictionuq.discrepancy.hidden import hidden_campaign
     # test_discrepancy_screen.py::test_candidate_search_starts_from_the_baselines_global_searches
     # Seed 12 since 2026-12-04 (night), a typical draw (p2 2.97; +15.1 nats held out, -1.0 / 6.8
     # / 9.3, near the hidden campaigns' median), named by the regular effects' threshold
-    # (screen.min_gain) where MIN_GAIN and the per-unit spread refused it
+    # (rule.min_gain) where MIN_GAIN and the per-unit spread refused it
     ("brfd", "stage2_nonlinear", 12),
 ])
 def test_discover_names_the_hidden_effect_or_none(tmp_path, device, effect, seed):
@@ -62,7 +62,7 @@ def test_cli_discover_on_a_clean_mfd_campaign(tmp_path, capsys):
     assert doc["alternatives"] == [] and doc["environment"]["numba_cpu"]
     html = (tmp_path / "out" / "report.html").read_text()
     assert "Named effect: none" in html and "frictionuq" in html and "seed 1" in html
-    # each candidate's threshold (screen.min_gain): lower for an effect whose null is regular
+    # each candidate's threshold (rule.min_gain): lower for an effect whose null is regular
     needs = {c["effect"]: c["min_gain"] for c in doc["candidates"]}
     assert needs["eccentricity"] == 20.0 and 5.0 < needs["stage2_nonlinear"] < 5.5, needs
     assert "needs (nats)" in out and "gain the rule asks" in html

@@ -141,7 +141,7 @@ NOISE_EFFECTS = frozenset(_p.effect for _p in _NOISE_EFFECT_PARAMS)
 #: best fit follows Wilks's chi2 with its number of parameters (half of that tail when a neutral
 #: value lies on its bound, as beta_app's 0). An effect with a parameter that is free when it is
 #: off (thermal_fade's e_fade, eccentricity's period and phase, ...) has no such law: it searches
-#: a family of shapes for the noise to fit. discrepancy.screen.min_gain sets the decision rule's
+#: a family of shapes for the noise to fit. discrepancy.rule.min_gain sets the decision rule's
 #: threshold from this (docs/log-discrepancy.md, 2026-12-04, night)
 REGULAR_NULL = frozenset(e for e, names in EFFECTS.items()
                          if all(PARAMS[n].neutral is not None for n in names))

@@ -3,7 +3,7 @@
 1. Screen (screen.py): per applied-force level, the baseline 3-stage model and every candidate
    effect of the library by the held-out tests' log predictive densities, leave one test out
    (ratios of Laplace evidences, predictive.py).
-2. Decide (screen.decide): the best candidate, or "none" (decision rule in screen.py). With
+2. Decide (rule.decide): the best candidate, or "none" (the decision rule: rule.py). With
    max_effects > 1 (forward selection, _screen_rounds): after naming one, screen the remaining
    candidates again against the model with the effects named so far, by the same rule, until a
    round says "none" or max_effects are named. Real records can carry several effects (the ARTS
@@ -50,7 +50,7 @@ from ..environment import environment
 from ..errors import InputError, check_seed
 from ..infer.fit import FitConfig, FitSpec, jsonable, plan, run_fit
 from ..infer.likelihood import NOISE_EFFECT_MIN_KEPT_HZ
-from . import fits, screen, seedcheck
+from . import fits, rule, screen, seedcheck
 from ..workers import Workers
 
 
@@ -201,7 +201,7 @@ def _candidate_rows(ranked) -> list[dict]:
              "rmse_before": r["rmse_baseline"], "rmse_after": r["rmse_map"],
              "gain_per_unit": r["gain_per_unit"],
              "map_gain": r["map_gain"], "screened_out": r["screened_out"],
-             "n_params": r["n_params"], "min_gain": screen.min_gain(r["effect"])} for r in ranked]
+             "n_params": r["n_params"], "min_gain": rule.min_gain(r["effect"])} for r in ranked]
 
 
 def _screen_rounds(specs, cfg, seed, effects, extra_effects, max_effects, log,
@@ -210,7 +210,7 @@ def _screen_rounds(specs, cfg, seed, effects, extra_effects, max_effects, log,
     3-stage model; while a round names an effect and fewer than max_effects are named, the next
     round takes the model with the effects named so far as its baseline (started from the named
     model's MAP of the round before, on each level) and screens the remaining candidates against
-    it, by the same rule (screen.decide). [{"baseline_effects", "named", "reason", "ranked",
+    it, by the same rule (rule.decide). [{"baseline_effects", "named", "reason", "ranked",
     "levels"}] per round."""
     named_so_far: list[str] = []
     rounds = []
@@ -227,8 +227,8 @@ def _screen_rounds(specs, cfg, seed, effects, extra_effects, max_effects, log,
                                      workers=workers)
             lv["id"] = s.id
             levels.append(lv)
-        ranked = screen.rank(levels) if len(levels[0]["models"]) > 1 else []
-        named, reason = screen.decide(ranked, levels)
+        ranked = rule.rank(levels) if len(levels[0]["models"]) > 1 else []
+        named, reason = rule.decide(ranked, levels)
         log(f"{f'round {r + 1}: ' if max_effects > 1 else ''}named effect: {named} ({reason})")
         rounds.append({"baseline_effects": list(named_so_far), "named": named, "reason": reason,
                        "ranked": ranked, "levels": levels})
@@ -318,16 +318,16 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
            "campaign": camp.name, "campaign_path": str(Path(campaign_path).resolve()),
            "seed": seed, "config": cfg.to_json(), "named_effect": named,
            "named_effects": named_all, "reason": rounds[0]["reason"],
-           "decision_rule": screen.RULE, "extra_effects": list(extra_effects),
+           "decision_rule": rule.RULE, "extra_effects": list(extra_effects),
            "max_effects": max_effects,
-           "alternatives": screen.alternatives(rounds[0]["ranked"], rounds[0]["named"]),
+           "alternatives": rule.alternatives(rounds[0]["ranked"], rounds[0]["named"]),
            "candidates": _candidate_rows(rounds[0]["ranked"]),
            "candidates_screened": [n for n in levels[0]["models"] if n != "baseline"],
            "rmse_before": rmse_before, "rmse_after": rmse_before, "noise_scale": None,
            "effect_parameters": {}, "levels": levels,
            "rounds": [{"round": i + 1, "baseline_effects": r["baseline_effects"],
                        "named_effect": r["named"], "reason": r["reason"],
-                       "alternatives": screen.alternatives(r["ranked"], r["named"]),
+                       "alternatives": rule.alternatives(r["ranked"], r["named"]),
                        "candidates": _candidate_rows(r["ranked"]),
                        **({"levels": r["levels"]} if i else {})} for i, r in enumerate(rounds)],
            "units": {"rmse": "N", "noise_scale": "N", "elpd": "nats", "seconds": "s"}}

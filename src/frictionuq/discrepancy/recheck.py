@@ -97,7 +97,7 @@ def peer_refit(fitted: dict, min_gain, log, pmap=map,
                margin: float = 100.0) -> dict[str, list[dict]]:
     """The contenders (candidates whose MAP on all units is more than min_gain above the
     baseline's: stage 1's; min_gain a number of nats, or a function of the candidate's name, as
-    screen.min_gain) within `margin` nats of the best contender's MAP each refitted from
+    rule.min_gain) within `margin` nats of the best contender's MAP each refitted from
     every other contender's MAP, their own effect's parameters kept (in place on `fitted`; each
     takes the best point it reaches). Returns {candidate: the starts that raised it}.
 
@@ -140,7 +140,7 @@ def nested_recheck(out: dict, full_fits: dict, fold_fits: dict, folds, log,
     from more points than the baseline's. So the baseline is refitted from each candidate's
     solution without the effect's parameters: on all tests of the level (cross_refit, before
     stage 1; `changed` lists the starts that raised it there), and here on the training
-    tests of each fold where a candidate gains more than min_unit_gain (screen.MIN_UNIT_GAIN) on
+    tests of each fold where a candidate gains more than min_unit_gain (rule.MIN_UNIT_GAIN) on
     the held-out unit. The baseline takes a new point only if it reaches a higher log-posterior
     on the data it is fitted to, never by its held-out score, so the check cannot favour the
     baseline on the held-out unit; a gain that came from the baseline's optimiser stopping in a
