@@ -452,7 +452,7 @@ def test_contenders_are_refitted_from_each_others_maps():
         fitted[name] = [lp, th, F.log_prob(lp, th), 0.0]
     before = {n: f[2] for n, f in fitted.items()}
     assert min(before["takeup_overshoot"], before["thermal_fade"]) - before["baseline"] > rule.MIN_GAIN
-    moved = peer_refit(fitted, rule.MIN_GAIN, print)
+    moved = peer_refit(fitted, lambda n: rule.MIN_GAIN, print)
     gain = fitted["takeup_overshoot"][2] - before["takeup_overshoot"]
     print(f"before {before}; overshoot +{gain:.1f} nats, fade "
           f"+{fitted['thermal_fade'][2] - before['thermal_fade']:.1f}")
@@ -492,7 +492,7 @@ def test_peer_refit_refits_the_contenders_near_the_best_from_every_contender():
         calls.extend(items)
         return [(th, -np.inf) for _, th in items]
 
-    moved = peer_refit(fitted, 20.0, print, pmap=record, margin=100.0)
+    moved = peer_refit(fitted, lambda n: 20.0, print, pmap=record, margin=100.0)
     want = [("eccentricity", "thermal_fade"), ("eccentricity", "reversal_hump"),
             ("thermal_fade", "eccentricity"), ("thermal_fade", "reversal_hump")]
     assert len(calls) == len(want)

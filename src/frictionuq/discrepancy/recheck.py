@@ -96,8 +96,8 @@ def theta_from_peer(space, theta, peer_space, peer_theta):
 def peer_refit(fitted: dict, min_gain, log, pmap=map,
                margin: float = 100.0) -> dict[str, list[dict]]:
     """The contenders (candidates whose MAP on all units is more than min_gain above the
-    baseline's: stage 1's; min_gain a number of nats, or a function of the candidate's name, as
-    rule.min_gain) within `margin` nats of the best contender's MAP each refitted from
+    baseline's: stage 1's; min_gain(name) the nats asked of that candidate, as screen's stage 1
+    asks them) within `margin` nats of the best contender's MAP each refitted from
     every other contender's MAP, their own effect's parameters kept (in place on `fitted`; each
     takes the best point it reaches). Returns {candidate: the starts that raised it}.
 
@@ -117,8 +117,7 @@ def peer_refit(fitted: dict, min_gain, log, pmap=map,
     baseline from the raised contenders' MAPs too, baseline_from, so that it is compared with
     its own best optimum, as after cross_refit.)"""
     base_lp = fitted["baseline"][2]
-    need = min_gain if callable(min_gain) else (lambda n: min_gain)
-    names = [n for n in fitted if n != "baseline" and fitted[n][2] - base_lp > need(n)]
+    names = [n for n in fitted if n != "baseline" and fitted[n][2] - base_lp > min_gain(n)]
     top = max((fitted[n][2] for n in names), default=base_lp)
     targets = [n for n in names if top - fitted[n][2] <= margin]
     pairs = [(a, b) for a in targets for b in names if a != b]
