@@ -3,7 +3,8 @@
 A campaign of three tests at one applied force of a paper device (BRFD or MFD, published
 parameters): two harmonics and one ground-motion replay, about 5,000 samples each at 100 Hz, with
 one effect of the library switched on at parameters drawn at random within realistic ranges, and
-AR(1) force noise. The generator's answer (effect, parameters, noise scale) is returned separately
+AR(1) force noise. The generator's answer (effect, parameters, the 3-stage parameters it simulated
+with, noise scale) is returned separately
 and written to a file OUTSIDE the campaign folder, so the workflow never sees it.
 
 ramp=True appends a fourth test, a sine of geometrically growing amplitude (an experiment of
@@ -267,7 +268,8 @@ def hidden_campaign(out_dir, device: str, effect: str | None, seed: int,
             f'force = "N"\napplied = "{unit_applied}"\n\n')
     atomic.write_text(out / "campaign.toml", head + "\n".join(toml))
     answer = {"device": device, "effect": effect or "none", "parameters": eff_p,
-              "effects": effects, "seed": seed,
+              "effects": effects, "model_parameters": {k: float(v) for k, v in p.items()},
+              "seed": seed,
               **({"chatter_form": chatter_form} if "chatter" in effects else {}),
               **({"test_zeros": test_zeros} if test_zeros else {}),
               "noise_sd_N": sd, "noise_phi": NOISE_PHI, "applied": level,
