@@ -7,7 +7,7 @@ wall time, then the hit rate and false-alarm count, in one run.
         [--effects none eccentricity ...] [--extra-effects takeup_overshoot] [--simulate-at raw|kept]
         [--also chatter --max-effects 2] [--chatter-form bursts] [--jobs 2]
         [--samples-per-cycle 400] [--max-steps 3000] [--sampler chains|ensemble|both] [--verbose]
-        [--rows ROWS.jsonl] [--score-all]
+        [--rows ROWS.jsonl] [--score-all] [--truth-fit]
 
 --full: full-length records (two harmonics of ~5,000 samples and a Kobe replay, the issue's speed
 case) under the CLI's own configuration (`frictionuq discover CAMPAIGN --out DIR`: 400 samples
@@ -35,11 +35,13 @@ from unittest import mock
 
 from frictionuq import atomic
 from frictionuq import params as P
-from frictionuq.discrepancy import screen
+from frictionuq.campaign import load_campaign
+from frictionuq.discrepancy import rule, screen
 from frictionuq.discrepancy.discover import discover
 from frictionuq.discrepancy.hidden import hidden_campaign
+from frictionuq.discrepancy.truthfit import truth_fit_gain
 from frictionuq.errors import InputError
-from frictionuq.infer.fit import FitConfig
+from frictionuq.infer.fit import FitConfig, plan
 from frictionuq.infer.sampler import SamplerConfig
 
 from bench_fit import SAMPLERS
@@ -99,6 +101,27 @@ def campaign_row(device: str, seed: int, ans: dict, doc: dict, secs: float, refi
     # what made it: the package, discover's configuration and seed, the machine
     row["made_by"] = {k: doc.get(k) for k in ("package_version", "config", "seed", "environment")}
     return row
+
+
+def truth_fit_fields(campaign_dir: Path, ans: dict, doc: dict, cfg: FitConfig) -> dict:
+    """--truth-fit: the in-sample evidence the campaign carries for its hidden effect(s)
+    (discrepancy.truthfit: the baseline plus the hidden effects fitted from the generating values,
+    its gain over the screening's baseline MAP), and the evidence a search could have used: the
+    larger of that and the hidden candidate's own in-sample gain (one hidden effect only).
+    "no_evidence": that evidence is under the rule's threshold for the effect (rule.min_gain), so
+    no search could name it at the rule's false-alarm rate; a miss with evidence over it is the
+    search's or the held-out scoring's."""
+    level = doc["levels"][0]["models"]["baseline"]
+    tests = plan(load_campaign(campaign_dir), "applied", cfg)[0].tests
+    o = truth_fit_gain(tests, cfg, ans, level["map"], level["log_prob_map"])
+    out = {"truth_fit_gain": o["gain"]}
+    if len(ans["effects"]) == 1:
+        (eff,) = ans["effects"]
+        own = next((c["map_gain"] for c in doc["candidates"] if c["effect"] == eff), -math.inf)
+        out["evidence"] = max(o["gain"], own)
+        out["min_gain"] = rule.min_gain(eff)
+        out["no_evidence"] = out["evidence"] < out["min_gain"]
+    return out
 
 
 class RowLog(list):
@@ -166,6 +189,11 @@ def main(argv=None) -> int:
                     "campaign's row (every candidate's in-sample and held-out gains, the hidden "
                     "parameters) to PATH as JSON lines, after each campaign; "
                     "benchmarks/gain_table.py tabulates them")
+    ap.add_argument("--truth-fit", action="store_true", help="also, on each hidden-effect campaign, "
+                    "the gain over the baseline's MAP of the baseline plus the hidden effect "
+                    "fitted from the generating values (discrepancy.truthfit), so that a miss is "
+                    "told apart: too little evidence in the records for the rule's threshold, or "
+                    "a search or scoring that fell short (about 1 s a campaign)")
     a = ap.parse_args(argv)
     if a.rows is not None:      # refused before any campaign runs
         if a.rows.is_dir():
@@ -198,13 +226,18 @@ def main(argv=None) -> int:
                         secs = time.perf_counter() - t0
                         row = campaign_row(dev, seed, ans, doc, secs, a.refit)
                         row["score_all"] = a.score_all
+                        if a.truth_fit and ans["effects"] and a.chatter_form != "bursts":
+                            row.update(truth_fit_fields(d / "c", ans, doc, cfgs[sm]))
                         rows.append(row)
                         print(f"{dev + ('/' + sm if len(samplers) > 1 else ''):<5} hidden {row['hidden']:<19} named {row['named']:<19} "
                               f"best {row['best']:<28} RMSE {row['rmse_before']:8.1f} -> "
                               f"{row['rmse_after']:8.1f} N (noise {row['noise']:.1f} N) "
                               f"{row.get('params_inside', ''):>5} {secs:6.1f} s"
                               + {True: ", refit converged", False: ", refit NOT converged",
-                                 None: ""}[row.get("refit_converged")], flush=True)
+                                 None: ""}[row.get("refit_converged")]
+                              + (f", truth fit {row['truth_fit_gain']:+.1f} nats (evidence "
+                                 f"{row['evidence']:+.1f}, needs {row['min_gain']:.3g})"
+                                 if "evidence" in row else ""), flush=True)
                         if a.verbose:
                             st = doc["seconds_by_stage"]
                             print("      " + ", ".join(f"{k} {v:.1f} s" for k, v in st.items()), flush=True)
@@ -222,6 +255,13 @@ def main(argv=None) -> int:
     print(f"hidden effects named correctly: {hits}/{n_eff}; false alarms on clean campaigns: "
           f"{fa}/{n_none}; mean time per campaign {sum(r['seconds'] for r in rows) / len(rows):.1f} s "
           f"({'full' if a.full else 'short'} records{', with refit' if a.refit else ''})")
+    missed = [r for r in rows if r["hidden"] != "none" and not r["right"] and "no_evidence" in r]
+    if a.truth_fit:
+        print(f"misses whose records carry less in-sample evidence than the rule's threshold "
+              f"(truth fit): {sum(r['no_evidence'] for r in missed)}/{len(missed)}; hidden campaigns "
+              f"with evidence over it: {sum(not r['no_evidence'] for r in rows if 'no_evidence' in r)}"
+              f"/{sum('no_evidence' in r for r in rows)}, named: "
+              f"{sum(r['right'] for r in rows if r.get('no_evidence') is False)}")
     refits = [r["refit_converged"] for r in rows if "refit_converged" in r]
     if refits:
         c = next(iter(cfgs.values()))

@@ -154,3 +154,33 @@ def test_score_all_scores_every_candidate_and_leaves_the_rule(tmp_path, monkeypa
     inf = float("inf")
     assert seen == [(-inf, -inf, -inf, s2), (inf, rule.MIN_GAIN, s2, s2)]
     assert screen.STAGE1_MIN_GAIN == before == inf
+
+
+def test_truth_fit_tells_a_miss_without_evidence_from_a_search_that_fell_short(monkeypatch):
+    """--truth-fit: the evidence is the larger of the truth fit's gain (discrepancy.truthfit) and
+    the hidden candidate's own in-sample gain; under the effect's threshold (rule.min_gain) the
+    miss is the records', over it the search's. With two effects hidden, the truth fit's gain
+    only (no single threshold)."""
+    from frictionuq.discrepancy import rule
+    bd = _bench_discover()
+    seen = []
+
+    def fake_truth_fit(tests, cfg, ans, base_map, base_lp):
+        seen.append((tests, base_map, base_lp))
+        return {"gain": ans["truth"]}
+
+    monkeypatch.setattr(bd, "truth_fit_gain", fake_truth_fit)
+    monkeypatch.setattr(bd, "load_campaign", lambda path: path)
+    monkeypatch.setattr(bd, "plan", lambda camp, by, cfg: [type("S", (), {"tests": [camp]})])
+    need = rule.min_gain("stage2_nonlinear")
+    for truth, own, evidence, none in [(3.5, 3.5, 3.5, True), (5.9, 4.8, 5.9, False),
+                                       (-1.0, 0.0, 0.0, True), (-2.0, 7.0, 7.0, False)]:
+        doc = _doc([], [("stage2_nonlinear", 1, own), ("eccentricity", 3, 9.0)])
+        doc["levels"] = [{"models": {"baseline": {"map": {"k2": 1.0}, "log_prob_map": -5.0}}}]
+        out = bd.truth_fit_fields("CAMP", {**_ans(["stage2_nonlinear"]), "truth": truth}, doc, None)
+        assert out == {"truth_fit_gain": truth, "evidence": evidence, "min_gain": need,
+                       "no_evidence": none}
+    assert seen[-1] == (["CAMP"], {"k2": 1.0}, -5.0)
+    out = bd.truth_fit_fields("CAMP", {**_ans(["stage2_nonlinear", "thermal_fade"]), "truth": 9.0},
+                              doc, None)
+    assert out == {"truth_fit_gain": 9.0}
