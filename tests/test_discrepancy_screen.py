@@ -292,6 +292,34 @@ def test_candidate_search_leaves_the_baselines_basin(tmp_path, device, effect, s
     assert lp_c >= lp_truth - 5.0, (lp_c - base["log_prob"], lp_truth - base["log_prob"])
 
 
+def test_a_curved_stage_2_starts_with_its_k2_raised(tmp_path):
+    """candidate.coupled_starts: for a candidate that adds stage2_nonlinear, the baseline's MAP
+    with p2 at each of STAGE2_P2_STARTS and k2 times (p2 + 1) / 2 (the curved line's mean force
+    over the gap kept), every other parameter as at the MAP; none for another effect or when the
+    baseline already has the curved stage 2 (a later round)."""
+    from frictionuq.discrepancy import fits as F
+    from frictionuq.infer.fit import FitConfig
+    hidden_campaign(tmp_path / "c", "brfd", None, seed=12, short=True)
+    tests = list(load_campaign(tmp_path / "c").tests)
+    cfg = FitConfig(samples_per_cycle=100)
+    lp0, _ = F.logpost_for(tests, (), cfg)
+    lp1, _ = F.logpost_for(tests, ("stage2_nonlinear",), cfg)
+    th_b = 0.5 * (lp0.space.lo + lp0.space.hi)
+    th0 = F.theta_in(lp1.space, lp0.space, th_b)
+    v0 = dict(zip(lp1.space.names, lp1.space.to_values(th0)))
+    starts = candidate.coupled_starts(lp1.space, lp0.space, th0)
+    assert len(starts) == len(candidate.STAGE2_P2_STARTS) == 2
+    for p2, th in zip(candidate.STAGE2_P2_STARTS, starts):
+        v = dict(zip(lp1.space.names, lp1.space.to_values(th)))
+        assert v["p2"] == pytest.approx(p2) and v["k2"] == pytest.approx(v0["k2"] * (p2 + 1) / 2)
+        assert all(v[n] == pytest.approx(v0[n]) for n in v if n not in ("p2", "k2"))
+        assert np.isfinite(F.log_prob(lp1, th))
+    lp_e, _ = F.logpost_for(tests, ("thermal_fade",), cfg)
+    assert candidate.coupled_starts(lp_e.space, lp0.space, F.theta_in(lp_e.space, lp0.space, th_b)) == []
+    lp2, _ = F.logpost_for(tests, ("stage2_nonlinear", "thermal_fade"), cfg)
+    assert candidate.coupled_starts(lp2.space, lp1.space, F.theta_in(lp2.space, lp1.space, th0)) == []
+
+
 def test_screening_on_two_processes_gives_the_serial_results(tmp_path):
     """screen_level with workers.Workers(2) (the candidates' MAPs, the cross refits and the
     held-out scoring side by side in two spawned processes) gives the serial run's numbers bit for
