@@ -4,8 +4,8 @@ A campaign of three tests at one applied force of a paper device (BRFD or MFD, p
 parameters): two harmonics and one ground-motion replay, about 5,000 samples each at 100 Hz, with
 one effect of the library switched on at parameters drawn at random within realistic ranges, and
 AR(1) force noise. The generator's answer (effect, parameters, the 3-stage parameters it simulated
-with, noise scale) is returned separately
-and written to a file OUTSIDE the campaign folder, so the workflow never sees it.
+with, noise scale) is returned separately and written to a file OUTSIDE the campaign folder, so the
+workflow never sees it.
 
 ramp=True appends a fourth test, a sine of geometrically growing amplitude (an experiment of
 2026-11-26 on stage2_nonlinear: 2 of 8 BRFD draws named against 1 of 8, none of 4 MFD;

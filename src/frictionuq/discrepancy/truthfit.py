@@ -13,7 +13,7 @@ kinds:
 * the evidence is under the decision rule's threshold (rule.min_gain): the records carry too
   little for any search to name the effect at the rule's false-alarm rate. Seen (2026-12-05) on
   the short MFD campaigns of seeds 12 and 25 with stage2_nonlinear hidden at p2 2.97 and 2.95:
-  truth fits +3.5 and -1.0 nats, the candidates' searches +3.5 and +0.0, the threshold 5.4. A
+  truth fits +3.5 and -0.9 nats, the candidates' searches +3.5 and +0.0, the threshold 5.4. A
   steep late stage-2 rise is imitated by the baseline's stage 3 (k2 near 0, d3 moved); the better
   of two fits at each p2 held between 1.0 and 3.5 (from the baseline's MAP and from the truth
   fit) is within -1.7 and +0.7 nats of the baseline's MAP on the seed-25 campaign;
