@@ -124,6 +124,18 @@ def truth_fit_fields(campaign_dir: Path, ans: dict, doc: dict, cfg: FitConfig) -
     return out
 
 
+def refuse_bad_rows(ap: argparse.ArgumentParser, rows: Path | None) -> None:
+    """--rows refused before any campaign runs (a folder, a parent that cannot be written): the
+    parser's one-line usage error, exit code 2."""
+    if rows is not None:
+        if rows.is_dir():
+            ap.error(f"--rows {rows}: a folder; give a file path")
+        try:
+            atomic.writable_parent(rows, create=False)
+        except InputError as e:
+            ap.error(f"--rows: {e}")
+
+
 class RowLog(list):
     """The rows so far; with a path, all of them rewritten there as JSON lines after each
     campaign (atomically: an interrupted run leaves the rows of its finished campaigns)."""
@@ -195,13 +207,7 @@ def main(argv=None) -> int:
                     "told apart: too little evidence in the records for the rule's threshold, or "
                     "a search or scoring that fell short (about 1 s a campaign)")
     a = ap.parse_args(argv)
-    if a.rows is not None:      # refused before any campaign runs
-        if a.rows.is_dir():
-            ap.error(f"--rows {a.rows}: a folder; give a file path")
-        try:
-            atomic.writable_parent(a.rows, create=False)
-        except InputError as e:
-            ap.error(f"--rows: {e}")
+    refuse_bad_rows(ap, a.rows)
     samplers = ["ensemble", "chains"] if a.sampler == "both" else [a.sampler]
     cfgs = {sm: bench_config(a.full, a.samples_per_cycle, a.max_steps, a.simulate_at, SAMPLERS[sm])
             for sm in samplers}

@@ -29,8 +29,7 @@ from frictionuq.discrepancy.truthfit import truth_fit_gain
 from frictionuq.infer.fit import FitConfig
 from frictionuq.infer.optimize import find_map
 
-#: the CI cases' and bench_discover.py's decimation of the short campaigns
-SAMPLES_PER_CYCLE = 100.0
+from bench_discover import SHORT_SAMPLES_PER_CYCLE, refuse_bad_rows   # the CI cases' decimation
 
 
 def evidence_row(campaign_dir: Path, device: str, effect: str, seed: int) -> dict:
@@ -39,7 +38,7 @@ def evidence_row(campaign_dir: Path, device: str, effect: str, seed: int) -> dic
     t0 = time.perf_counter()
     ans = hidden_campaign(campaign_dir, device, effect, seed=seed, short=True)
     tests = list(load_campaign(campaign_dir).tests)
-    cfg = FitConfig(samples_per_cycle=SAMPLES_PER_CYCLE)
+    cfg = FitConfig(samples_per_cycle=SHORT_SAMPLES_PER_CYCLE)
     lp0, scales = F.logpost_for(tests, (), cfg)
     th_b, lp_b, _ = find_map(lp0, scales, np.random.default_rng([1, 17, 0]), n_random=1, n_prior=1)
     o = truth_fit_gain(tests, cfg, ans, F.values(lp0.space, th_b), lp_b)
@@ -56,6 +55,7 @@ def main(argv=None) -> int:
     ap.add_argument("--rows", type=Path, default=None, metavar="PATH",
                     help="also write the rows to PATH as JSON lines (rewritten after each campaign)")
     a = ap.parse_args(argv)
+    refuse_bad_rows(ap, a.rows)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for dev in a.devices:
