@@ -30,6 +30,7 @@ import json
 import math
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 from unittest import mock
 
@@ -112,6 +113,11 @@ def truth_fit_fields(campaign_dir: Path, ans: dict, doc: dict, cfg: FitConfig) -
     no search could name it at the rule's false-alarm rate; a miss with evidence over it is the
     search's or the held-out scoring's."""
     level = doc["levels"][0]["models"]["baseline"]
+    # the records the baseline's MAP was scored on: with a noise effect among the candidates
+    # discover keeps every model's records at NOISE_EFFECT_MIN_KEPT_HZ or more (its document's
+    # config), and a truth fit on the config's own decimation would score fewer samples (seen
+    # 2026-12-05: +3,631 nats for a hidden speed_weakening whose candidate gained +165)
+    cfg = replace(cfg, min_kept_hz=doc["config"].get("min_kept_hz"))
     tests = plan(load_campaign(campaign_dir), "applied", cfg)[0].tests
     o = truth_fit_gain(tests, cfg, ans, level["map"], level["log_prob_map"])
     out = {"truth_fit_gain": o["gain"]}

@@ -166,21 +166,34 @@ def test_truth_fit_tells_a_miss_without_evidence_from_a_search_that_fell_short(m
     seen = []
 
     def fake_truth_fit(tests, cfg, ans, base_map, base_lp):
-        seen.append((tests, base_map, base_lp))
+        seen.append((tests, base_map, base_lp, cfg.min_kept_hz))
         return {"gain": ans["truth"]}
+
+    planned = []
+
+    def fake_plan(camp, by, cfg):
+        planned.append(cfg.min_kept_hz)
+        return [type("S", (), {"tests": [camp]})]
 
     monkeypatch.setattr(bd, "truth_fit_gain", fake_truth_fit)
     monkeypatch.setattr(bd, "load_campaign", lambda path: path)
-    monkeypatch.setattr(bd, "plan", lambda camp, by, cfg: [type("S", (), {"tests": [camp]})])
+    monkeypatch.setattr(bd, "plan", fake_plan)
+    from frictionuq.infer.fit import FitConfig
+    cfg = FitConfig(samples_per_cycle=100)
     need = rule.min_gain("stage2_nonlinear")
     for truth, own, evidence, none in [(3.5, 3.5, 3.5, True), (5.9, 4.8, 5.9, False),
                                        (-1.0, 0.0, 0.0, True), (-2.0, 7.0, 7.0, False)]:
         doc = _doc([], [("stage2_nonlinear", 1, own), ("eccentricity", 3, 9.0)])
         doc["levels"] = [{"models": {"baseline": {"map": {"k2": 1.0}, "log_prob_map": -5.0}}}]
-        out = bd.truth_fit_fields("CAMP", {**_ans(["stage2_nonlinear"]), "truth": truth}, doc, None)
+        out = bd.truth_fit_fields("CAMP", {**_ans(["stage2_nonlinear"]), "truth": truth}, doc, cfg)
         assert out == {"truth_fit_gain": truth, "evidence": evidence, "min_gain": need,
                        "no_evidence": none}
-    assert seen[-1] == (["CAMP"], {"k2": 1.0}, -5.0)
+    assert seen[-1] == (["CAMP"], {"k2": 1.0}, -5.0, None)
     out = bd.truth_fit_fields("CAMP", {**_ans(["stage2_nonlinear", "thermal_fade"]), "truth": 9.0},
-                              doc, None)
+                              doc, cfg)
     assert out == {"truth_fit_gain": 9.0}
+    # with a noise effect among the candidates discover scored every model on records kept at
+    # 50 Hz or more (its document's config): the truth fit plans and fits the same records
+    doc["config"]["min_kept_hz"] = 50.0
+    bd.truth_fit_fields("CAMP", {**_ans(["speed_weakening"]), "truth": 9.0}, doc, cfg)
+    assert planned[-1] == 50.0 and seen[-1][3] == 50.0 and cfg.min_kept_hz is None
