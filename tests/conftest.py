@@ -38,7 +38,7 @@ SLOW_FIRST = ("test_discrepancy_discover_rounds.py", "test_discrepancy_discover.
               "test_discrepancy_screen.py", "test_stat_recovery.py", "test_infer_fit.py",
               "test_infer_law.py", "test_discrepancy_combine.py", "test_infer_compare.py",
               "test_stat_sbc.py", "test_discrepancy_diagnostics.py", "test_infer_arma.py",
-              "test_cli_fit.py", "test_infer_likelihood.py")
+              "test_cli_fit.py", "test_infer_likelihood.py", "test_discrepancy_gap.py")
 
 
 def pytest_collection_modifyitems(session, config, items):

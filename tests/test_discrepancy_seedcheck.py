@@ -53,7 +53,7 @@ def stubbed(tmp_path, monkeypatch):
 
     monkeypatch.setattr(D, "_screen_rounds", screen)
     monkeypatch.setattr(D, "_between", lambda *a: None)
-    monkeypatch.setattr(D, "_gap", lambda *a, **kw: [])     # the CLI's diagnostics
+    monkeypatch.setattr(D, "level_gap", lambda *a, **kw: [])     # the CLI's diagnostics
     hidden_campaign(tmp_path / "c", "brfd", None, seed=11, short=True)
     return D, calls
 

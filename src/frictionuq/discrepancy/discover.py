@@ -12,10 +12,11 @@
    with 95 % intervals, and the RMSE after. The sampler starts from the screening's MAP of the
    named model on that level (polished, no second multi-start search: it cost 30 s of a 5-minute
    run on a full-length MFD campaign).
-4. The gap before and after, per test: residual diagnostics (diagnostics.py) at the baseline's MAP
-   and, when an effect is named, at the MAP with it: which views show significant structure
-   before and after (figures DIR/residuals-<model>-<test>.png), and the force-displacement loops
-   of both models over the data with their residuals (DIR/loops-<test>.png).
+4. The gap before and after, per test (gap.py): residual diagnostics (diagnostics.py) at the
+   baseline's MAP and, when an effect is named, at the MAP with it: which views show significant
+   structure before and after (figures DIR/residuals-<model>-<test>.png), and the
+   force-displacement loops of both models over the data with their residuals
+   (DIR/loops-<test>.png).
 5. Do the level's tests share one force zero? The between-tests check of every joint fit
    (infer.between) at the baseline's MAP (`between_tests`; _between says why this is a check
    and not a candidate of the screening).
@@ -51,6 +52,7 @@ from ..errors import InputError, check_seed
 from ..infer.fit import FitConfig, FitSpec, jsonable, plan, run_fit
 from ..infer.likelihood import NOISE_EFFECT_MIN_KEPT_HZ
 from . import fits, rule, screen, seedcheck
+from .gap import combined, level_gap
 from ..workers import Workers
 
 
@@ -75,19 +77,6 @@ def _gain_rms(level_tests, cfg, effects, entry: dict) -> dict:
     th = lp.space.to_theta({n: entry["parameters"][n]["mean"] for n in lp.space.names})[None, :]
     return {rec.id: float(np.sqrt(np.mean(lp.noise_gain(th, j)[0] ** 2)))
             for j, rec in enumerate(lp.records)}
-
-
-def _model_forces(level_tests, cfg, effects, map_values: dict) -> list[tuple]:
-    """[(fit record, simulated force at the MAP point incl. the load-cell offset (N), the noise
-    gain of a noise effect there or None)] per test."""
-    lp, _ = fits.logpost_for(level_tests, effects, cfg)
-    th = lp.space.to_theta({n: map_values[n] for n in lp.space.names})[None, :]
-    out = []
-    for j, rec in enumerate(lp.records):
-        g = lp.noise_gain(th, j)
-        # per-test offsets (FitConfig.force_offset): each test's own zero, profiled at the MAP
-        out.append((rec, lp.fitted_force(th, rec)[0], None if g is None else g[0]))
-    return out
 
 
 def _between(spec, cfg, level: dict) -> dict | None:
@@ -115,85 +104,6 @@ def _between(spec, cfg, level: dict) -> dict | None:
     return {"level": spec.id, **offset_check(
         [r.id for r in lp.records], means, [r.n for r in lp.records],
         [s / np.sqrt(1.0 - phi**2) for phi, s in white], [phi for phi, _ in white])}
-
-
-def _label(view: str, d: dict) -> str:
-    """A significant view as the report lists it (the spectrum with its wavelength, the
-    high-frequency bursts with their band and where they sit)."""
-    if view == "spectrum":
-        return f"spectrum ({d['spectrum']['wavelength_m'] * 1e3:.3g} mm)"
-    if view == "chatter":
-        c = d["chatter"]
-        lo, hi = c["peak_since_reversal_m"]
-        return (f"chatter (bursts > {c['highpass_hz']:.3g} Hz, strongest {lo * 1e3:.3g}-{hi * 1e3:.3g} mm "
-                f"after the reversal, {c['peak_rms_n']:.3g} N rms)")
-    return view
-
-
-#: the permutation seeds of a level's tests are seed, seed + this, seed + 2 x this, ...
-PERM_SEED_STRIDE = 7919
-
-
-def _gap(level_tests, cfg, base_map: dict, named: list, named_map: dict, seed: int,
-         fig_dir: Path, log) -> list[dict]:
-    """The gap before and after, per test of a level: residual diagnostics (diagnostics.diagnose)
-    at the baseline's MAP (base_map) and, when effects are named, at the MAP of the model with all
-    of them (named_map) (figures residuals-<model>-<test>.png), and the loops of both models over
-    the data with their residuals (loops-<test>.png); RMSE (offset removed) of each."""
-    from .diagnostics import diagnose
-    from .plots import centred_rmse, loop_figure, residual_figure
-    models = [("baseline", (), base_map)] + ([(f"with {' + '.join(named)}", tuple(named), named_map)]
-                                              if named else [])
-    forces = {tag: _model_forces(level_tests, cfg, eff, m) for tag, eff, m in models}
-    out = []
-    for tag, _, _ in models:
-        for j, (rec, F, g) in enumerate(forces[tag]):
-            # with a noise effect (chatter) the residual in units of its noise model, which the
-            # likelihood takes as stationary: what the effect leaves unexplained
-            r = rec.y - F if g is None else (rec.y - F) / g
-            # each test its own permutations (seed + PERM_SEED_STRIDE j): the level's tests
-            # combined (combine.py) need independent p-values; both models of a test share them
-            d = diagnose(rec.t, rec.x, r, force_model=F, eps=rec.eps, applied=rec.applied,
-                         seed=seed + PERM_SEED_STRIDE * j,
-                         bursts=rec.kind != "earthquake")   # chatter.py: why
-            d["scaled_by_noise_gain"] = g is not None
-            name = f"residuals-{tag.replace(' ', '-')}-{rec.id}.png"
-            title = f"{rec.id}: residuals, {tag}" + ("" if g is None else " (divided by the noise gain)")
-            atomic.write_bytes(fig_dir / name, residual_figure(d, None, title=title))
-            sig = [_label(k, d) for k in d["significant"]]
-            log(f"diagnostics {tag} {rec.id}: significant structure in {', '.join(sig) or 'none'}")
-            # the RMSE about the residual's own mean (the shape of the misfit), and that mean:
-            # the test's zero against the model's
-            out.append({"test": rec.id, "model": tag, "figure": name, "significant_views": sig,
-                        "rmse": centred_rmse(rec.y - F), "mean_residual": float(np.mean(rec.y - F)),
-                        "diagnostics": d})
-    for i, (rec, _, _) in enumerate(forces["baseline"]):
-        name = f"loops-{rec.id}.png"
-        png = loop_figure(rec.t, rec.x, rec.y, {tag: forces[tag][i][1] for tag, _, _ in models},
-                          title=f"{rec.id}: measured and modelled force, "
-                                + (f"baseline and {models[-1][0]}" if named else "baseline (none named)"))
-        atomic.write_bytes(fig_dir / name, png)
-        for g in out:
-            if g["test"] == rec.id:
-                g["loop_figure"] = name
-    return out
-
-
-def _combined(level: str, gap: list[dict], log) -> list[dict]:
-    """The level's tests' diagnostics taken together (combine.py), per model, with 2+ tests."""
-    from .combine import combine
-    out = []
-    for tag in dict.fromkeys(g["model"] for g in gap):
-        gs = [g for g in gap if g["model"] == tag]
-        if len(gs) < 2:
-            continue
-        c = {"level": level, "model": tag,
-             **combine([g["diagnostics"] for g in gs], [g["test"] for g in gs])}
-        log(f"diagnostics {tag}, level {level}, its tests combined: significant structure in "
-            f"{', '.join(c['significant']) or 'none'}"
-            + (f" (not combined: {', '.join(c['excluded'])})" if c["excluded"] else ""))
-        out.append(c)
-    return out
 
 
 def _candidate_rows(ranked) -> list[dict]:
@@ -246,17 +156,16 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
     effects beyond the spec (params.BEYOND_SPEC) to screen as well. max_effects: how many
     effects may be named, one per round (_screen_rounds); named_effect is the first,
     named_effects all of them, and the refit and the gap are those of the model with all.
-    jobs: processes for the screening's fits (workers.Workers; the CLI's default is every core;
-    1 here, as inside a pipeline task, which has its own processes); the results do not depend
-    on it. With jobs > 1 the workers are spawned: a script calling this must do so under
-    `if __name__ == "__main__":` (Python's rule for spawned processes).
+    jobs: processes for the screening's fits and the gap's diagnostics and figures
+    (workers.Workers; the CLI's default is every core; 1 here, as inside a pipeline task, which
+    has its own processes); the results do not depend on it. With jobs > 1 the workers are
+    spawned: a script calling this must do so under `if __name__ == "__main__":` (Python's rule
+    for spawned processes).
 
     check_seeds: seeds to screen the campaign again with (seedcheck.py): `seed_check` in the
     document says whether each names the same effects.
 
     Decimated records are simulated as the config says (raw rate by default, as the fits)."""
-    from .. import __version__
-    from ..campaign import load_campaign
     log = log or (lambda m: None)
     check_seed(seed, "discover")
     cfg = replace(config or FitConfig(), seed=seed)  # recorded in discrepancy.json
@@ -295,17 +204,28 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
     if noise:
         # every model of the comparison on the same records, kept at a rate that holds chatter
         cfg = replace(cfg, min_kept_hz=max(cfg.min_kept_hz or 0.0, NOISE_EFFECT_MIN_KEPT_HZ))
+    with Workers(jobs) as workers:
+        return _run(campaign_path, out_dir, cfg, seed, effects, extra_effects, refit, diagnostics,
+                    max_effects, check_seeds, log, workers)
+
+
+def _run(campaign_path, out_dir, cfg, seed, effects, extra_effects, refit, diagnostics,
+         max_effects, check_seeds, log, workers) -> dict:
+    """discover's work once its arguments are checked: the screening's and the gap's tasks on the
+    workers' processes (kept open from the first round to the last figure)."""
+    from .. import __version__
+    from .. import params as P
+    from ..campaign import load_campaign
     t0 = time.perf_counter()
     camp = load_campaign(campaign_path)
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out}: exists and is not a folder")
     specs = plan(camp, "applied", cfg)
-    with Workers(jobs) as workers:
-        rounds = _screen_rounds(specs, cfg, seed, effects, extra_effects, max_effects, log, workers)
-        checks = [(s_, _screen_rounds(specs, replace(cfg, seed=s_), s_, effects, extra_effects,
-                                      max_effects, lambda m, s_=s_: log(f"seed check {s_}: {m}"),
-                                      workers)) for s_ in check_seeds]
+    rounds = _screen_rounds(specs, cfg, seed, effects, extra_effects, max_effects, log, workers)
+    checks = [(s_, _screen_rounds(specs, replace(cfg, seed=s_), s_, effects, extra_effects,
+                                  max_effects, lambda m, s_=s_: log(f"seed check {s_}: {m}"),
+                                  workers)) for s_ in check_seeds]
     named_all = [r["named"] for r in rounds if r["named"] != "none"]
     named = named_all[0] if named_all else "none"
     levels = rounds[0]["levels"]
@@ -376,9 +296,10 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
     if diagnostics:
         doc["diagnostics"], doc["combined_diagnostics"] = [], []
         for s_, lv, fm in zip(specs, levels, final_maps):
-            gap = _gap(s_.tests, cfg, lv["models"]["baseline"]["map"], named_all, fm, seed, out, log)
+            gap = level_gap(s_.tests, cfg, lv["models"]["baseline"]["map"], named_all, fm, seed,
+                            out, log, workers)
             doc["diagnostics"] += gap
-            doc["combined_diagnostics"] += _combined(s_.id, gap, log)
+            doc["combined_diagnostics"] += combined(s_.id, gap, log)
     stages["diagnostics"] = time.perf_counter() - t_diag
     doc["seconds"] = time.perf_counter() - t0
     doc["seconds_by_stage"] = stages
