@@ -80,7 +80,9 @@ def campaign_row(device: str, seed: int, ans: dict, doc: dict, secs: float, refi
            "named": "+".join(doc["named_effects"]) or "none",
            "right": sorted(doc["named_effects"]) == hidden,
            "seconds": secs, "rmse_before": doc["rmse_before"],
-           "rmse_after": doc["rmse_after"], "noise": ans["noise_sd_N"]}
+           "rmse_after": doc["rmse_after"], "noise": ans["noise_sd_N"],
+           # with a noise effect (chatter) the rms of the generator's sd over the records
+           "noise_rms": ans.get("noise_rms_N", ans["noise_sd_N"])}
     if refit and hidden and row["right"]:
         ok = [doc["effect_parameters"][n]["q2.5"] <= v <= doc["effect_parameters"][n]["q97.5"]
               for q in ans["effects"].values() for n, v in q.items()
@@ -243,7 +245,10 @@ def main(argv=None) -> int:
                         rows.append(row)
                         print(f"{dev + ('/' + sm if len(samplers) > 1 else ''):<5} hidden {row['hidden']:<19} named {row['named']:<19} "
                               f"best {row['best']:<28} RMSE {row['rmse_before']:8.1f} -> "
-                              f"{row['rmse_after']:8.1f} N (noise {row['noise']:.1f} N) "
+                              f"{row['rmse_after']:8.1f} N (noise {row['noise']:.1f} N"
+                              + (f", rms {row['noise_rms']:.1f} N"
+                                 if abs(row['noise_rms'] - row['noise']) > 1e-9 * row['noise'] else "")
+                              + f"; x{row['rmse_after'] / row['noise_rms']:.2f}) "
                               f"{row.get('params_inside', ''):>5} {secs:6.1f} s"
                               + {True: ", refit converged", False: ", refit NOT converged",
                                  None: ""}[row.get("refit_converged")]

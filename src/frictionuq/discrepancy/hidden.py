@@ -175,7 +175,11 @@ def hidden_campaign(out_dir, device: str, effect: str | None, seed: int,
                     ramp_start: float = RAMP_START, also: str | None = None,
                     chatter_form: str = "window", zeros: bool = False) -> dict:
     """Write a 3-test campaign with `effect` hidden (None: no effect) to out_dir; returns the
-    answer {effect, parameters, noise_sd_N, ...} (also written to answer_path if given).
+    answer {effect, parameters, noise_sd_N, noise_rms_N, ...} (also written to answer_path if
+    given). noise_sd_N is the AR(1) noise's stationary sd; noise_rms_N the root-mean-square of
+    the generator's noise sd over every sample of the campaign: the same with no noise effect,
+    larger with chatter (the sd times its gain inside each window after a reversal, plus the
+    bursts of chatter_form="bursts"). The noise scale an effect's rmse_after is measured against.
     short: 4 cycles per harmonic and `eq_seconds` of the ground motion, from its strong motion
     (eq_from="strong", strong_motion) or from its start ("start": the CI campaigns before
     2026-11-25, night, whose Kobe replay was the first 20 s). ramp: a fourth test, a sine of
@@ -244,17 +248,24 @@ def hidden_campaign(out_dir, device: str, effect: str | None, seed: int,
             eff_p = effects["chatter"]
     tests, toml = [], []
     (out / "tests").mkdir(parents=True, exist_ok=True)
+    var_sum, n_sum = 0.0, 0       # the generator's noise variance summed over every sample
     for tid, kind, f, t, x in drives:
         n = t.size
         actual, measured = applied_signals(t, a_si, rng)
         F = simulate(t, x, p, effects=model_effects or None, eps=0.0,
                      applied=actual if "applied_tracking" in effects else None)
         noise = ar1_from_normals(rng.standard_normal(n), NOISE_PHI, sd)
+        var = np.full(n, sd**2)
         for e in noise_effects:      # chatter: more noise in a window after each reversal
             args = [effects[e].get(n, PARAMS[n].default) for n in EFFECTS[e]]
-            noise = noise * chatter_gain(since_reversal(x), *args)[0]
+            g = chatter_gain(since_reversal(x), *args)[0]
+            noise = noise * g
+            var = var * g**2
         if burst_rng is not None:
-            noise = noise + stick_slip_bursts(t, x, p["d2"] + p["d3"], effects["chatter"], burst_rng)
+            bursts = stick_slip_bursts(t, x, p["d2"] + p["d3"], effects["chatter"], burst_rng)
+            noise = noise + bursts
+            var = var + bursts**2
+        var_sum, n_sum = var_sum + float(np.sum(var)), n_sum + n
         y = F + noise + (test_zeros[f"force_offset[{tid}]"] if test_zeros else 0.0)
         a_out = measured if unit_applied == "N" else measured / 6894.757293168
         body = "time,displacement,force,applied\n" + "".join(
@@ -272,7 +283,8 @@ def hidden_campaign(out_dir, device: str, effect: str | None, seed: int,
               "seed": seed,
               **({"chatter_form": chatter_form} if "chatter" in effects else {}),
               **({"test_zeros": test_zeros} if test_zeros else {}),
-              "noise_sd_N": sd, "noise_phi": NOISE_PHI, "applied": level,
+              "noise_sd_N": sd, "noise_rms_N": float(np.sqrt(var_sum / n_sum)),
+              "noise_phi": NOISE_PHI, "applied": level,
               "applied_unit": unit_applied, "tests": tests}
     if answer_path is not None:
         atomic.write_json(answer_path, answer)
