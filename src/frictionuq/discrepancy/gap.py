@@ -59,7 +59,7 @@ def _gap_task(args):
 
 
 def level_gap(level_tests, cfg, base_map: dict, named: list, named_map: dict, seed: int,
-         fig_dir: Path, log, workers=None) -> list[dict]:
+              fig_dir: Path, log, workers=None) -> list[dict]:
     """The gap before and after, per test of a level: residual diagnostics (diagnostics.diagnose)
     at the baseline's MAP (base_map) and, when effects are named, at the MAP of the model with all
     of them (named_map) (figures residuals-<model>-<test>.png), and the loops of both models over
