@@ -56,7 +56,8 @@ WORKFLOW = {
     "workflow": {"name": "tiny-report", "description": "Report test run: 2 short BRFD tests, tiny sampler",
                  "campaign": str(ARTS), "seed": 1},
     "fit": {"by": "applied", "model": "three_stage", "tests": list(FIT_TESTS)},
-    "predict": {"validate": [HELD_OUT]},
+    "predict": {"validate": [HELD_OUT], "harmonic": [
+        {"name": PREDICTION, "amplitude_m": 0.025, "frequency_hz": 2.0, "applied": 36}]},
     "compare": {"models": ["three_stage", "lugre"]},
     "report": {"title": "Tiny report test", "published": "brfd"},
 }

@@ -209,6 +209,15 @@ def test_with_the_real_law(fit_dir, tmp_path, capsys):
     err = capsys.readouterr().err
     assert ("note: applied 2000 N lies above the fitted levels (133, 267 N) by more than a "
             "factor 1.5") in err, err
+    # the same sentence in a workflow's task log (and console) and in the report's block
+    from frictionuq.extrapolation import notes
+    from frictionuq.report.context import Context
+    from frictionuq.report.sections.predictions import prediction
+    said = notes(far)
+    assert len(said) == 1 and said[0].startswith("applied 2000 N lies above the fitted levels")
+    blocks = prediction(Context(tmp_path, {}, {}), tmp_path / "far")
+    assert any(said[0] in str(b) for b in blocks), blocks
+    assert notes(meta) == []
 
 
 def test_fits_behind_names_only_the_fits_the_table_uses():

@@ -97,3 +97,46 @@ def test_discover_screens_a_noise_effect_on_records_that_keep_its_band(tmp_path,
             D.discover(tmp_path / "c", tmp_path / "out", FitConfig(samples_per_cycle=100),
                        extra_effects=extra)
         assert seen == {"floor": floor, "q": q}, (extra, seen)
+
+
+def test_discover_replaces_its_output_folder_as_a_whole(tmp_path, monkeypatch):
+    """--out: the campaign folder (or one holding it) and a foreign non-empty folder are refused;
+    a previous run's folder is replaced once the new run is complete, so no earlier refit/ stays
+    beside the new document, and a failed run leaves it as it was. The run itself is a stub that
+    writes what the given folder receives."""
+    from frictionuq.discrepancy import discover as D
+    from frictionuq.errors import InputError
+    camp = tmp_path / "c"
+    hidden_campaign(camp, "brfd", None, seed=11, short=True)
+    with pytest.raises(InputError, match="must differ from the campaign folder"):
+        D.discover(camp, camp)
+    with pytest.raises(InputError, match="must differ from the campaign folder"):
+        D.discover(camp, tmp_path)
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("keep")
+    with pytest.raises(InputError, match="is not a `frictionuq discover` output folder"):
+        D.discover(camp, tmp_path / "mine")
+    assert (tmp_path / "mine" / "notes.txt").read_text() == "keep"
+
+    def stub(campaign_path, out, *args):
+        (out / "discrepancy.json").write_text(json.dumps({"run": "new"}))
+        return {"run": "new"}
+
+    out = tmp_path / "out"
+    (out / "refit" / "applied-66N").mkdir(parents=True)
+    (out / "discrepancy.json").write_text(json.dumps({"run": "old"}))
+    monkeypatch.setattr(D, "_run", stub)
+    assert D.discover(camp, out) == {"run": "new"}
+    assert sorted(p.name for p in out.iterdir()) == ["discrepancy.json"]
+
+    def boom(campaign_path, out, *args):
+        (out / "discrepancy.json").write_text("half")
+        raise RuntimeError("interrupted")
+
+    (out / "refit").mkdir()
+    monkeypatch.setattr(D, "_run", boom)
+    with pytest.raises(RuntimeError):
+        D.discover(camp, out)
+    assert json.loads((out / "discrepancy.json").read_text()) == {"run": "new"}
+    assert (out / "refit").is_dir()
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []

@@ -90,6 +90,14 @@ def test_last_line_of_a_task_log(tmp_path):
     assert _last_line(tmp_path / "absent.log") == ""
 
 
+def test_a_task_logs_notes_are_found_for_the_console():
+    from frictionuq.pipeline.runner import NOTE
+    log = ("[    0.0 s] start predict:far\n[   12.5 s] prediction far: draws from the law\n"
+           "[   12.6 s] note: applied 2000 N lies above the fitted levels (133, 267 N)\n"
+           "[   12.7 s] done predict:far in 12.7 s\n")
+    assert NOTE.findall(log) == ["note: applied 2000 N lies above the fitted levels (133, 267 N)"]
+
+
 def test_a_dependency_recomputed_in_another_run_makes_its_dependents_stale(tmp_path):
     up = Task("fit:a", "fit", [], {}, ["a.txt"], key="ka")
     down = Task("report", "report", ["fit:a"], {}, ["r.txt"], key="kr")
@@ -129,3 +137,67 @@ def test_status_names_an_interrupted_task(tmp_path):
     (d / cache.KEY_FILE).write_text("another key")
     why = {n: w for n, _, w in plan_status(wf, ["fit:applied-36lb"])}
     assert why["fit:applied-36lb"] == "never run (no cache entry)"
+
+
+def _keys(folder: Path, edit_wf=lambda s: s, edit_camp=lambda s: s) -> dict[str, str]:
+    """Task keys of quick.toml run on a copy of its campaign's campaign.toml (records linked),
+    with the discrepancy stage on its own tests, after the two edits."""
+    camp = folder / "c"
+    if not camp.exists():
+        camp.mkdir(parents=True)
+        (camp / "records").symlink_to(ROOT / "data" / "brfd-arts-d2" / "records")
+    src = (ROOT / "data" / "brfd-arts-d2" / "campaign.toml").read_text()
+    (camp / "campaign.toml").write_text(edit_camp(src))
+    text = (ROOT / "workflows" / "quick.toml").read_text()
+    text = text.replace('campaign = "../data/brfd-arts-d2"',
+                        'campaign = "c"\noutput = "out"\nreport = "rep"')
+    text += '\n[discrepancy]\nenabled = true\ntests = ["sine-1Hz-36lb-1in"]\n'
+    (folder / "wf.toml").write_text(edit_wf(text))
+    return {n: t.key for n, t in plan(load_workflow(folder / "wf.toml")).items()}
+
+
+def test_keys_change_for_exactly_the_tasks_that_read_the_change(tmp_path):
+    """A task's key holds what it reads: its own fit settings (not the whole [fit] section), its
+    tests, and the campaign's units, columns and (the summary's mechanical advantage) geometry."""
+    base = _keys(tmp_path)
+    assert base == _keys(tmp_path)
+
+    def changed(**edits):
+        new = _keys(tmp_path, **edits)
+        assert set(new) == set(base)
+        return {n for n in base if new[n] != base[n]}
+
+    preds = {"predict:validation", "predict:harmonic-25mm-1Hz-36lb", "predict:kobe-10mm-36lb"}
+    # a test added at 36 lb: the 36 lb fit and what reads it; not the 0 lb fit, nor the
+    # comparison and discrepancy, which have tests of their own
+    assert changed(edit_wf=lambda s: s.replace('"sine-2Hz-0lb-1in"]\nsamples',
+                                               '"sine-2Hz-0lb-1in", "sine-0.25Hz-36lb-1in"]\nsamples')
+                   ) == {"fit:applied-36lb", "fit/summary", "report"} | preds
+    # the fits' sampler: the fits (and the discrepancy's screening config); the comparison has
+    # its own [compare.sampler]
+    assert changed(edit_wf=lambda s: s.replace("max_steps = 1000", "max_steps = 1200")) == {
+        "fit:applied-36lb", "fit:applied-0lb", "fit/summary", "discrepancy", "report"} | preds
+    # a prior of the 3-stage model: not the pure-LuGre comparison, which does not use it
+    got = changed(edit_wf=lambda s: s.replace("[law]", '[fit.priors]\nw = 0.0002\n\n[law]'))
+    assert "compare:applied-36lb:three_stage" in got and "compare:applied-36lb:lugre" not in got
+    # the records' force unit: everything that reads a record
+    assert changed(edit_camp=lambda s: s.replace('force = "kip"', 'force = "kN"')) == set(base)
+    # the geometry: the mechanical advantage (fit/summary) and after it; no fit
+    got = changed(edit_camp=lambda s: s.replace("C_design = 142", "C_design = 150"))
+    assert got == {"ingest", "fit/summary", "report"} | preds, got
+
+
+def test_a_bad_scheduler_address_or_record_file_is_one_line_of_input_error(tmp_path):
+    """--scheduler that names no Dask scheduler, and a campaign entry whose record file is gone
+    (which `status` and `--dry-run` meet before any record is read), are InputErrors (one line,
+    exit 2 at the command line), not tracebacks."""
+    from frictionuq.pipeline.runner import _Pool
+    with pytest.raises(InputError, match="--scheduler nonsense: cannot connect to a Dask scheduler"):
+        _Pool(2, "nonsense")
+    _keys(tmp_path)
+    toml = tmp_path / "c" / "campaign.toml"
+    toml.write_text(toml.read_text().replace("records/1Hz36lbtension1amplitude.json.gz",
+                                             "records/gone.json.gz"))
+    with pytest.raises(InputError, match=r"campaign.toml, tests\[\d+\], key file: .*gone.json.gz: "
+                                         "file not found"):
+        plan(load_workflow(tmp_path / "wf.toml"))

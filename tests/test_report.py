@@ -343,3 +343,22 @@ def test_report_in_headless_chromium(rendered_report):
     assert found["page_width"] <= found["viewport_width"]
     assert found["main_width"] <= 1100
     assert shot.is_file() and shot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.slow
+def test_outputs_the_workflow_no_longer_asks_for_are_not_shown(report_run, partial_run, tmp_path):
+    """A run folder keeps an earlier run's comparison, discrepancy and prediction folders when
+    the workflow drops them; the report shows only what the workflow asks for and says so."""
+    import copy
+    run = partial_run("ingest", "fit", "compare", "predict")
+    wf = copy.deepcopy(report_run["workflow"])
+    html = render_report(run, tmp_path / "all.html", workflow=wf, provenance={}).read_text()
+    assert 'id="prediction-harmonic-25mm-2Hz-36lb"' in html and "BRFD paper, Table 4" in html
+    wf["compare"]["enabled"] = False
+    wf["predict"] = {"validate": [], "harmonic": []}
+    html = render_report(run, tmp_path / "some.html", workflow=wf, provenance={}).read_text()
+    comp, pred = section_html(html, "comparison"), section_html(html, "predictions")
+    assert "not enabled in this workflow ([compare] enabled = false)" in comp
+    assert "<table" not in comp
+    assert 'id="prediction-' not in pred and 'id="predictions-validation"' not in pred
+    assert "No prediction for a new drive in this workflow" in pred

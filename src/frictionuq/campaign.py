@@ -280,6 +280,9 @@ def load_campaign(path, read_records: bool = True) -> Campaign:
                   description=t["description"])
         if read_records:
             te.record, te.sha256 = read_record(path, t, cfg["units"], cfg["columns"], f"{toml}, tests[{i}]")
+        elif not_a_file(path / t["file"]):    # the records unread, but there to be read
+            raise InputError(f"{toml}, tests[{i}], key file: {path / t['file']}: "
+                             f"{not_a_file(path / t['file'])}")
         tests.append(te)
     meta = dict(cfg["meta"])
     meta["campaign_toml_sha256"] = sha256_file(toml)

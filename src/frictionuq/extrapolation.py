@@ -71,3 +71,26 @@ def warn_about(fit_dir, draws, summary, t, x, applied_si) -> tuple[dict, dict]:
                       f"more than a factor {BEYOND_FACTOR}: the force-dependence law "
                       "extrapolates", ResultWarning, stacklevel=3)
     return rng, ar
+
+
+def notes(meta: dict) -> list[str]:
+    """The sentences a prediction's record (prediction.json) calls for about where it
+    extrapolates: the input beyond the fitted records' stroke or speed, the applied force beyond
+    the fitted levels. The same words on the command line (`predict`), in a workflow's task log
+    and console, and in the report."""
+    from .units import from_si
+    out = []
+    r = meta.get("fitted_range") or {}
+    if r.get("beyond"):
+        out.append(f"the input goes beyond the fitted records ({', '.join(r['beyond'])}): stroke "
+                   f"{r['stroke_m']:.4g} m against {r['fitted_stroke_m']:.4g} m, peak speed "
+                   f"{r['peak_speed_m_s']:.4g} m/s against {r['fitted_peak_speed_m_s']:.4g} m/s; "
+                   "the bands extrapolate the model there")
+    ar, ap = meta.get("applied_range") or {}, meta.get("applied") or {}
+    if ar.get("beyond"):
+        u = ap["unit"]
+        lv = ", ".join(f"{from_si(v, 'applied', u):g}" for v in ar["fitted_levels_si"])
+        out.append(f"applied {ap['value']:g} {u} lies {ar['side']} the fitted levels ({lv} {u}) "
+                   f"by more than a factor {ar['factor']:g}: the force-dependence law "
+                   f"extrapolates there (is {u} the unit you meant?)")
+    return out

@@ -112,20 +112,12 @@ def _cmd_predict(a):
           f"{ap['unit']} ({m['draws_source']}, {m['n_draws']} draws; time s, displacement m, "
           "force N, energy J)")
     _note_not_converged(m["not_converged_fits"], "the bands are drawn")
-    r = m["fitted_range"]
-    if r["beyond"]:
-        print(f"note: the input goes beyond the fitted records ({', '.join(r['beyond'])}): stroke "
-              f"{r['stroke_m']:.4g} m against {r['fitted_stroke_m']:.4g} m, peak speed "
-              f"{r['peak_speed_m_s']:.4g} m/s against {r['fitted_peak_speed_m_s']:.4g} m/s; the "
-              "bands extrapolate the model there (predict's input CSV is in SI: metres)",
-              file=sys.stderr)
-    ar = m["applied_range"]
-    if ar["beyond"]:
-        from ..units import from_si
-        lv = ", ".join(f"{from_si(v, 'applied', ap['unit']):g}" for v in ar["fitted_levels_si"])
-        print(f"note: applied {ap['value']:g} {ap['unit']} lies {ar['side']} the fitted levels "
-              f"({lv} {ap['unit']}) by more than a factor {ar['factor']:g}: the force-dependence "
-              f"law extrapolates there (is {ap['unit']} the unit you meant?)", file=sys.stderr)
+    from ..extrapolation import notes
+    for i, n in enumerate(notes(m)):
+        # the input CSV is in SI: a stroke far beyond the records may be millimetres as metres
+        tail = (" (predict's input CSV is in SI: metres)"
+                if i == 0 and m["fitted_range"]["beyond"] and a.input else "")
+        print(f"note: {n}{tail}", file=sys.stderr)
 
 
 def _cmd_advantage(a):

@@ -204,8 +204,12 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
     if noise:
         # every model of the comparison on the same records, kept at a rate that holds chatter
         cfg = replace(cfg, min_kept_hz=max(cfg.min_kept_hz or 0.0, NOISE_EFFECT_MIN_KEPT_HZ))
-    with Workers(jobs) as workers:
-        return _run(campaign_path, out_dir, cfg, seed, effects, extra_effects, refit, diagnostics,
+    # the output folder: a new one, or a previous run's, replaced as a whole once this run is
+    # complete (no earlier refit/ or figure left beside the new document; nothing lost on failure)
+    atomic.check_replaceable(campaign_path, Path(out_dir), "discrepancy.json", "campaign",
+                             "a `frictionuq discover` output folder")
+    with Workers(jobs) as workers, atomic.output_dir(out_dir) as tmp:
+        return _run(campaign_path, tmp, cfg, seed, effects, extra_effects, refit, diagnostics,
                     max_effects, check_seeds, log, workers)
 
 
@@ -219,8 +223,6 @@ def _run(campaign_path, out_dir, cfg, seed, effects, extra_effects, refit, diagn
     t0 = time.perf_counter()
     camp = load_campaign(campaign_path)
     out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out}: exists and is not a folder")
     specs = plan(camp, "applied", cfg)
     rounds = _screen_rounds(specs, cfg, seed, effects, extra_effects, max_effects, log, workers)
     checks = [(s_, _screen_rounds(specs, replace(cfg, seed=s_), s_, effects, extra_effects,

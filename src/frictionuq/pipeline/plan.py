@@ -6,13 +6,19 @@
     ingest -> discrepancy (when enabled); everything -> report
 
 A task's key is the SHA-256 of its name, the content it reads (the source files of the tests it
-uses, with their campaign entries), the workflow settings it uses, the keys of the tasks it
-depends on and the package version. Changing one test or one setting therefore changes the keys
-of exactly the tasks that depend on it. Keys are known before anything runs (the campaign's test
+uses, with their campaign entries and the campaign's units and columns), the settings it uses (a
+fit or comparison: its own FitConfig, whichever workflow section they come from; not the test
+selection lists, whose effect is the tests named in the key), the keys of the tasks it depends on
+and the package version. Changing one test or one setting therefore changes the keys of exactly
+the tasks that depend on it: a test added at one level leaves the other levels' fits up to date,
+a [fit.sampler] setting leaves comparisons that have their own [compare.sampler] up to date, and
+an edited [units] table (the records read in other units) or [geometry] table (mechanical
+advantage) reruns what reads it. Keys are known before anything runs (the campaign's test
 table is read, not its records), so `--dry-run` and `status` can say what would run and why.
 """
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import os
@@ -48,6 +54,21 @@ def _h(obj) -> str:
 def _file_hashes(camp) -> dict[str, str]:
     from ..campaign import sha256_file
     return {t.id: sha256_file(Path(camp.path) / t.file) for t in camp.tests}
+
+
+def _config_part(cfg) -> dict:
+    """A FitConfig as key content: every setting but the test selection (tests, kinds), whose
+    effect, the tests chosen, is in the task's test parts."""
+    d = dataclasses.asdict(cfg)
+    d.pop("tests")
+    d.pop("kinds")
+    return d
+
+
+def _campaign_part(camp) -> dict:
+    """What every task reading records takes from campaign.toml besides its test entries: the
+    records' units and column names."""
+    return {"units": camp.units, "columns": camp.columns}
 
 
 def _test_parts(tests, hashes) -> list[dict]:
@@ -89,11 +110,15 @@ def plan(wf) -> dict[str, Task]:
         name = f"fit:{s.id}"
         fit_names.append(name)
         tasks.append(Task(name, "fit", ["ingest"],
-                          {"fit": wf.section_hash("fit"), "seed": wf.seed,
-                           "tests": _test_parts(s.tests, hashes)},
+                          {"config": _config_part(fcfg), "by": f["by"], "seed": wf.seed,
+                           "campaign": _campaign_part(camp), "tests": _test_parts(s.tests, hashes)},
                           [f"fit/{s.id}"], {"fit_id": s.id, "tests": [t.id for t in s.tests]},
                           heavy=True, key_deps=[]))
-    tasks.append(Task("fit/summary", "fit", fit_names, {"law": wf.section_hash("law")},
+    # the summary also writes the mechanical advantage, from the campaign's geometry
+    tasks.append(Task("fit/summary", "fit", fit_names,
+                      {"law": wf.section_hash("law"), "campaign": {
+                          **_campaign_part(camp), "geometry": camp.geometry,
+                          "device": camp.device, "name": camp.name}},
                       ["fit/summary.json", "fit/law.json", "advantage"]))
 
     p = cfg["predict"]
@@ -103,7 +128,7 @@ def plan(wf) -> dict[str, Task]:
         pred_names.append("predict:validation")
         tasks.append(Task("predict:validation", "predict", ["ingest", "fit/summary"],
                           {"n_draws": p["n_draws"], "seed": wf.seed,
-                           "tests": _test_parts(vt, hashes)},
+                           "campaign": _campaign_part(camp), "tests": _test_parts(vt, hashes)},
                           ["predict/validation"], {"tests": [t.id for t in vt]},
                           key_deps=["fit/summary"]))
     for e in p["harmonic"] + p["ground_motion"]:
@@ -138,8 +163,9 @@ def plan(wf) -> dict[str, Task]:
                 name = f"compare:{lv.id}:{m}"
                 cmp_names.append(name)
                 tasks.append(Task(name, "compare", ["ingest"],
-                                  {"compare": wf.section_hash("compare"), "fit": wf.section_hash("fit"),
-                                   "seed": wf.seed, "tests": _test_parts(lv.tests, hashes)},
+                                  {"config": _config_part(wf.fit_config(compare_model=m)),
+                                   "seed": wf.seed, "campaign": _campaign_part(camp),
+                                   "tests": _test_parts(lv.tests, hashes)},
                                   [f"compare/{lv.id}/{m}"],
                                   {"level": lv.id, "model": m, "tests": [t.id for t in lv.tests]},
                                   heavy=True, key_deps=[]))
@@ -155,8 +181,10 @@ def plan(wf) -> dict[str, Task]:
                          "[discrepancy] tests/kinds")
         disc = ["discrepancy"]
         tasks.append(Task("discrepancy", "discrepancy", ["ingest"],
-                          {"discrepancy": wf.section_hash("discrepancy"), "fit": wf.section_hash("fit"),
-                           "seed": wf.seed, "tests": _test_parts(dtests, hashes)},
+                          {"discrepancy": {k: v for k, v in dc.items()
+                                           if k not in ("tests", "kinds", "enabled")},
+                           "config": _config_part(fcfg), "seed": wf.seed,
+                           "campaign": _campaign_part(camp), "tests": _test_parts(dtests, hashes)},
                           ["discrepancy"], {"tests": [t.id for t in dtests]}, heavy=True,
                           key_deps=[]))
 

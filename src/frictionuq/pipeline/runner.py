@@ -17,11 +17,13 @@ apart, progress and logs.
 from __future__ import annotations
 
 import os
+import re
 import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..errors import InputError
 from ..interrupts import interrupts
 from . import cache
 from .plan import closure, plan
@@ -108,6 +110,10 @@ def _last_line(path: Path) -> str:
         return ""
 
 
+#: a task log's notes for the user (TaskLog's "[   1.0 s] note: ..." lines), shown on the console
+NOTE = re.compile(r"^\[\s*[\d.]+ s\] (note: .*)$", re.M)
+
+
 class _Pool:
     """Local spawned processes or a Dask cluster, behind submit() and futures with done()."""
 
@@ -116,7 +122,11 @@ class _Pool:
         self.threads = max(1, (os.cpu_count() or 1) // max(1, jobs))
         if scheduler:
             from dask.distributed import Client
-            self.client = Client(scheduler, timeout="20s")
+            try:
+                self.client = Client(scheduler, timeout="20s")
+            except (OSError, ValueError, TypeError) as e:    # unreachable, or not an address
+                raise InputError(f"--scheduler {scheduler}: cannot connect to a Dask scheduler "
+                                 f"there ({' '.join(str(e).split())})") from None
             self.threads = None          # the cluster's own configuration
         elif jobs > 1:
             import multiprocessing
@@ -154,6 +164,9 @@ def run(wf, targets=("all",), jobs: int = 1, scheduler: str | None = None, force
     if "ingest" in todo:     # a bad campaign is bad input: one line and exit 2, before any task
         from ..campaign import load_campaign
         load_campaign(wf.campaign)
+    # the workers before any log is written: an unreachable --scheduler is bad input too
+    pool = (_Pool(jobs, scheduler) if any(tasks[n].heavy for n in todo) else _Pool(1, None)) \
+        if todo else None
     started = time.strftime("%Y-%m-%dT%H:%M:%S%z")
     stamp = time.strftime("%Y%m%d-%H%M%S")
     res.log_file = Path(wf.out) / "logs" / f"run-{stamp}.log"
@@ -167,7 +180,6 @@ def run(wf, targets=("all",), jobs: int = 1, scheduler: str | None = None, force
         disp.close()
         res.seconds = time.perf_counter() - t0
         return res
-    pool = _Pool(jobs, scheduler) if any(tasks[n].heavy for n in todo) else _Pool(1, None)
     running: dict[str, object] = {}
     pending = [n for n in order if n in todo]
 
@@ -175,10 +187,13 @@ def run(wf, targets=("all",), jobs: int = 1, scheduler: str | None = None, force
         statuses[n] = {"status": "ran" if out["ok"] else "failed", "seconds": out["seconds"],
                        "error": out["error"]}
         with open(task_log_path(wf.out, n), errors="replace") as f:
-            disp.file.write(f"--- log of {n} ---\n{f.read()}")
+            text = f.read()
+        disp.file.write(f"--- log of {n} ---\n{text}")
         if out["ok"]:
             res.ran.append(n)
             disp.line(f"done    {n} ({out['seconds']:.1f} s)")
+            for note in NOTE.findall(text):        # what the task asks the user to read
+                disp.line(f"        {n}: {note}")
         else:
             res.failed[n] = out["error"]
             disp.line(f"FAILED  {n}: {out['error']}")

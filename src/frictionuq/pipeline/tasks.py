@@ -87,8 +87,6 @@ def own_dir(run_dir, task) -> Path | None:
         return Path(run_dir) / "fit" / task.args["fit_id"]
     if task.stage == "compare" and "level" in task.args:
         return Path(run_dir) / "compare" / task.args["level"] / task.args["model"]
-    if task.name == "discrepancy":
-        return Path(run_dir) / "discrepancy"
     return None
 
 
@@ -155,6 +153,9 @@ def _predict(wf, task, log):
         meta = write_prediction(fit_dir, out, harmonic=(e["amplitude_m"], e["frequency_hz"]),
                                 applied=e["applied"], n_draws=p["n_draws"], seed=wf.seed)
     log(f"prediction {e['name']}: draws from {meta['draws_source']}")
+    from ..extrapolation import notes
+    for n in notes(meta):        # shown on the console too (runner: a log's "note: " lines)
+        log(f"note: {n}")
 
 
 def _compare(wf, task, log):
@@ -188,8 +189,12 @@ def _compare_summary(wf, task, log):
 def _discrepancy(wf, task, log):
     from dataclasses import replace
     from ..discrepancy.discover import discover
-    d = own_dir(wf.out, task)
-    _fresh_dir(d, task.key, log)
+    # discover replaces its folder as a whole when it is done; a folder without its document is
+    # an interrupted run's (or an older version's, with the task key in it): nothing to keep
+    d = Path(wf.out) / "discrepancy"
+    if d.is_dir() and not (d / "discrepancy.json").is_file():
+        log(f"clearing {d} (an interrupted run)")
+        shutil.rmtree(d)
     cfg = replace(wf.fit_config(), tests=tuple(task.args["tests"]), kinds=None)
     doc = discover(Path(wf.out) / "ingest", d, cfg, seed=wf.seed,
                    refit=wf.config["discrepancy"]["refit"],

@@ -102,6 +102,24 @@ class Context:
             return azadapter.load(nc)
         return self._cached(("posterior", fit_id), make)
 
+    # ------------------------------------------------------------ what the workflow asks for
+    def disabled(self, stage: str) -> bool:
+        """Whether the workflow turns the stage ([compare], [discrepancy]) off. The run folder can
+        still hold an earlier run's outputs of it, which the report does not show as this
+        workflow's; without a workflow (a bare run folder) nothing is disabled."""
+        return section_of(self.workflow, stage).get("enabled") is False
+
+    def predictions(self) -> set[str] | None:
+        """Names of the predictions the workflow asks for ("validation" when it validates on
+        held-out tests); None without a [predict] table (every prediction folder is shown)."""
+        p = section_of(self.workflow, "predict")
+        if not p:
+            return None
+        names = {"validation"} if p.get("validate") else set()
+        for key in ("harmonic", "ground_motion"):
+            names.update(e.get("name") for e in p.get(key) or [] if isinstance(e, dict))
+        return names
+
     # ------------------------------------------------------------ report options
     def title(self) -> str:
         rep = section_of(self.workflow, "report")

@@ -58,6 +58,9 @@ def _pairs(lv: dict) -> str:
 
 def build(ctx) -> list[dict]:
     path = ctx.run_dir / "compare" / "compare.json"
+    if ctx.disabled("compare"):
+        return [B.note("The model comparison is not enabled in this workflow ([compare] enabled = "
+                       "false).")]
     if not path.is_file():
         return [B.note("The model comparison was not run in this workflow (compare/compare.json "
                        "absent).")]

@@ -17,7 +17,7 @@ def build(ctx, folder=None) -> list[dict]:
     folder of `frictionuq discover`."""
     folder = ctx.run_dir / "discrepancy" if folder is None else folder
     p = folder / "discrepancy.json"
-    if not p.is_file():
+    if not p.is_file() or ctx.disabled("discrepancy"):
         return [B.note("The discrepancy stage was not run in this workflow ([discrepancy] enabled = "
                        "false); `frictionuq discover CAMPAIGN --out DIR` runs it on its own.")]
     d = json.loads(p.read_text())

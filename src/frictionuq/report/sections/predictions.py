@@ -105,6 +105,8 @@ def prediction(ctx, pdir: Path) -> list[dict]:
             ("number of draws", meta.get("n_draws", DASH)), ("seed", meta.get("seed", DASH)),
             ("load-cell offset", meta.get("offset", DASH))]
     out = [B.html(kv_table(info, caption="prediction"))]
+    from ...extrapolation import notes
+    out += [B.note(f"Note: {n}.") for n in notes(meta)]
     if (pdir / "bands.csv").is_file():
         df = _read_csv(pdir / "bands.csv")
         png = F.band_panels(df["time"], df["displacement"], bands_of(df, median="force_model_median"),
@@ -140,14 +142,19 @@ def build(ctx) -> list[dict]:
     if not pdir.is_dir():
         return [B.note("No prediction or validation was run in this workflow (predict/ absent).")]
     out = []
+    # only what the workflow asks for: a folder of a prediction it no longer lists is an earlier
+    # run's, left in the run folder
+    wanted = ctx.predictions()
     vdir = pdir / "validation"
-    if (vdir / "validation.json").is_file():
+    if (vdir / "validation.json").is_file() and (wanted is None or "validation" in wanted):
         out.append(B.sub("predictions-validation", "Validation on held-out tests", validation(ctx, vdir)))
     else:
         out.append(B.note("No validation on held-out tests in this workflow "
-                          "(predict/validation/validation.json absent)."))
+                          "([predict] validate is empty, or predict/validation/validation.json "
+                          "is absent)."))
     others = sorted(d for d in pdir.iterdir()
-                    if d.is_dir() and d.name != "validation" and (d / "prediction.json").is_file())
+                    if d.is_dir() and d.name != "validation" and (d / "prediction.json").is_file()
+                    and (wanted is None or d.name in wanted))
     for d in others:
         out.append(B.sub(f"prediction-{B.slug(d.name)}", f"Prediction {d.name}", prediction(ctx, d)))
     if not others:
