@@ -315,7 +315,7 @@ def test_single_column_errors(tmp_path):
 def test_column_file_errors(tmp_path):
     p = tmp_path / "two.txt"
     head = "%Acc. in cm/sec^2 and dt=0.005 sec.\r\n"
-    rows = "1.0\t\t2.0\r\n" * 12
+    rows = "".join(f"1.0\t\t{2.0 if k % 2 == 0 else 2.5}\r\n" for k in range(12))
     p.write_bytes((head + rows).encode())
     rec = G.read_columns(p, column=1)
     assert rec.dt == 0.005 and rec.a[0] == pytest.approx(0.02)
@@ -328,6 +328,26 @@ def test_column_file_errors(tmp_path):
     _raises_one_line(lambda: G.read_columns(p, dt=0.01), p, "missing header", "unit")
     p.write_bytes((head + rows).encode())
     _raises_one_line(lambda: G.read_columns(p, column=2), p, "column 2")
+
+
+def test_records_without_a_ground_motion_or_read_from_the_wrong_column(tmp_path):
+    """Refused with one line (until 2026-12-05 an all-zero record passed the workflow's load and
+    its prediction wrote NaN; `column` on a one-column file was ignored; a time column was read
+    as accelerations)."""
+    p = tmp_path / "zeros.txt"
+    p.write_text("0\n" * 1000)
+    _raises_one_line(lambda: G.read_record(p, dt=0.01), p, "every acceleration value is 0.0",
+                     "no ground motion")
+    q = tmp_path / "one.txt"
+    q.write_text("".join(f"{np.sin(k / 5):.4f}\n" for k in range(200)))
+    assert G.read_record(q, dt=0.01).npts == 200
+    _raises_one_line(lambda: G.read_record(q, dt=0.01, column=3), q, "column 3 requested",
+                     "one value per line")
+    r = tmp_path / "time-acc.txt"
+    r.write_text("".join(f"{k * 0.01:.2f} {np.sin(k / 5):.4f}\n" for k in range(200)))
+    _raises_one_line(lambda: G.read_record(r, dt=0.01, unit="g"), r, "column 0 increases on every "
+                     "line, like a time column", "(0 to 1)")
+    assert G.read_record(r, dt=0.01, unit="g", column=1).npts == 200
 
 
 def test_missing_file(tmp_path):

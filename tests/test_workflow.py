@@ -95,6 +95,8 @@ def test_the_stored_run_is_chosen_in_the_sampler_table(tmp_path):
     ("\n[discrepancy]\ncheck_seeds = [1]\n", "[discrepancy].check_seeds", "the workflow's own seed"),
     ("\n[discrepancy]\ncheck_seeds = [2, 2]\n", "[discrepancy].check_seeds", "twice"),
     ("\n[discrepancy]\ncheck_seeds = [-2]\n", "[discrepancy].check_seeds", "must be >= 0"),
+    ("\n[discrepancy]\ncheck_seeds = [18446744073709551616]\n", "[discrepancy].check_seeds",
+     "must be <= 9223372036854775807"),
     ("\n[discrepancy]\ncheck_seeds = 2\n", "[discrepancy].check_seeds", "list of integers"),
 ])
 def test_bad_keys_and_values_name_file_key_and_problem(tmp_path, extra, where, problem):
@@ -103,6 +105,17 @@ def test_bad_keys_and_values_name_file_key_and_problem(tmp_path, extra, where, p
         load_workflow(p)
     msg = str(e.value)
     assert str(p) in msg and where in msg and problem in msg, msg
+
+
+def test_the_report_folder_is_checked_when_the_workflow_loads(tmp_path):
+    """[workflow].report: a file, or a folder inside the campaign, is refused at load (until
+    2026-12-05 every fit ran first and the report task then failed)."""
+    (tmp_path / "repfile").write_text("x")
+    for rep, problem in (("repfile", "is a file, not a folder"),
+                         (str(ROOT / "data" / "brfd-arts-d2" / "r"), "lies inside the campaign")):
+        p = _write(tmp_path, base=BASE.replace('[workflow]\n', f'[workflow]\nreport = "{rep}"\n', 1))
+        with pytest.raises(InputError, match=r"\[workflow\]\.report.*" + problem):
+            load_workflow(p)
 
 
 def test_a_ground_motion_file_is_read_when_the_workflow_loads(tmp_path):

@@ -109,7 +109,11 @@ def _to_si(path, values, unit: str) -> np.ndarray:
         f = factor("acceleration", unit)
     except ValueError as e:
         raise InputError(f"{path}: {e}") from None
-    return np.asarray(values, dtype=float) * f
+    a = np.asarray(values, dtype=float) * f
+    if a.size and np.all(a == a[0]):     # baseline correction leaves no motion to scale
+        raise InputError(f"{path}: every acceleration value is {values[0]!r}: no ground motion "
+                         "in this record")
+    return a
 
 
 def _check_count(path, n: int, minimum: int = 10) -> None:
@@ -213,6 +217,9 @@ def read_columns(path, column: int = 0, dt: float | None = None, unit: str | Non
             raise InputError(f"{path}, line {i}: expected {ncol} values, got {len(row)}")
         vals.append(row[column])
     _check_count(path, len(vals))
+    if ncol > 1 and np.all(np.diff(vals) > 0):     # no accelerogram rises on every line
+        raise InputError(f"{path}: column {column} increases on every line, like a time column; "
+                         f"give the column of the accelerations (0 to {ncol - 1})")
     return GroundMotion(name=name or f"{path.stem}[{column}]", source=str(path), dt=dt,
                         a=_to_si(path, vals, unit), unit_in_file=unit,
                         description=header[:200], meta={"column": column})
@@ -229,6 +236,9 @@ def read_record(path, dt: float | None = None, unit: str | None = None, column: 
     first = next((ln for ln in lines if ln.strip()), "")
     if first.strip().startswith("%") or len(first.replace(",", " ").split()) > 1:
         return read_columns(path, column=column, dt=dt, unit=unit, name=name)
+    if column:
+        raise InputError(f"{path}: column {column} requested, the file has one value per line "
+                         "(column 0)")
     if dt is None:
         raise InputError(f"{path}: a single-column accelerogram has no time step in the file; "
                          "give dt")

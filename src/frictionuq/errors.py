@@ -40,11 +40,16 @@ def where(path, row: int | None = None, key: str | None = None) -> str:
     return s
 
 
+#: the largest seed: outputs record it as a 64-bit integer (HDF5 and netCDF attributes)
+MAX_SEED = 2**63 - 1
+
+
 def check_seed(seed, who: str) -> int:
     """seed as an int, or an InputError naming `who`: the random generators (numpy's) take
-    non-negative integers, and a bad seed must be refused before any work starts."""
-    if isinstance(seed, bool) or not isinstance(seed, Integral) or seed < 0:
-        raise InputError(f"{who}: seed must be a non-negative integer, got {seed!r}")
+    non-negative integers, the outputs store it in 64 bits, and a bad seed must be refused
+    before any work starts."""
+    if isinstance(seed, bool) or not isinstance(seed, Integral) or not 0 <= seed <= MAX_SEED:
+        raise InputError(f"{who}: seed must be an integer from 0 to {MAX_SEED}, got {seed!r}")
     return int(seed)
 
 

@@ -203,6 +203,9 @@ def displacement_history(record: GroundMotion, peak_m: float | None = None,
     if peak_m is not None:
         if not (np.isfinite(peak_m) and peak_m > 0):
             raise ValueError(f"peak_m must be > 0 m, got {peak_m!r}")
+        if not np.max(np.abs(x)) > 0:
+            raise ValueError(f"{record.source}: the record's displacement is 0 everywhere after "
+                             "baseline correction; it cannot be scaled to peak_m")
         x = x * (peak_m / np.max(np.abs(x)))
     if fs_out is not None:
         t, x = resample(t, x, fs_out)

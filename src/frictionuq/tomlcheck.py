@@ -49,7 +49,7 @@ class Checker:
         return v
 
     def num(self, t, key, where, default=None, integer=False, minimum=None, positive=False,
-            required=False):
+            required=False, maximum=None):
         if key not in t:
             if required:
                 self.fail(f"{where}.{key}", "missing (required)")
@@ -62,6 +62,8 @@ class Checker:
             self.fail(f"{where}.{key}", f"must be > 0, got {v!r}")
         if minimum is not None and v < minimum:
             self.fail(f"{where}.{key}", f"must be >= {minimum}, got {v!r}")
+        if maximum is not None and v > maximum:
+            self.fail(f"{where}.{key}", f"must be <= {maximum}, got {v!r}")
         return v
 
     def integers(self, t, key, where, minimum=0):

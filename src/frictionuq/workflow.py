@@ -49,7 +49,7 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from .errors import InputError
+from .errors import MAX_SEED, InputError
 from .tomlcheck import Checker
 
 NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]*$")
@@ -314,9 +314,15 @@ def load_workflow(path) -> Workflow:
                "folder of its own is needed (e.g. ../out/<name>)")
     if out.exists() and not out.is_dir():
         c.fail("[workflow].output", f"{out} is a file, not a folder")
+    if rep == campaign or campaign in rep.parents:
+        c.fail("[workflow].report", f"{rep} lies inside the campaign folder")
+    if rep.exists() and not rep.is_dir():
+        c.fail("[workflow].report", f"{rep} is a file, not a folder (the report is "
+               "<report>/index.html)")
     cfg = {"workflow": {"name": name, "description": c.str_(t, "description", "[workflow]", ""),
                         "campaign": str(campaign), "seed": c.num(t, "seed", "[workflow]", 1,
-                                                                 integer=True, minimum=0),
+                                                                 integer=True, minimum=0,
+                                                                 maximum=MAX_SEED),
                         "output": str(out), "report": str(rep)},
            "fit": _fit(c, tables["fit"])}
     lt = tables["law"]
@@ -337,6 +343,9 @@ def load_workflow(path) -> Workflow:
                           "max_effects": c.num(dt, "max_effects", "[discrepancy]", 1,
                                                integer=True, minimum=1),
                           "check_seeds": c.integers(dt, "check_seeds", "[discrepancy]")}
+    if any(s > MAX_SEED for s in cfg["discrepancy"]["check_seeds"]):
+        c.fail("[discrepancy].check_seeds", f"entries must be <= {MAX_SEED}, got "
+               f"{cfg['discrepancy']['check_seeds']!r}")
     if cfg["workflow"]["seed"] in cfg["discrepancy"]["check_seeds"]:
         c.fail("[discrepancy].check_seeds", f"{cfg['workflow']['seed']} is the workflow's own "
                "seed; give other seeds")

@@ -43,8 +43,12 @@ def main(argv=None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except KeyboardInterrupt:
+        # fit and run keep a fit's stored steps; compare, discover and the others write their
+        # output folder only once complete (nothing of the interrupted run is left)
+        resumes = getattr(args, "command", None) in ("fit", "run")
         print("frictionuq: interrupted; finished outputs are kept, and the same command "
-              "resumes a fit from its stored steps", file=sys.stderr)
+              + ("resumes a fit from its stored steps" if resumes else "starts it again"),
+              file=sys.stderr)
         return 130
     except (ValueError, FileNotFoundError, IsADirectoryError, NotADirectoryError,
             PermissionError) as e:

@@ -9,11 +9,21 @@ DESCRIPTION = ("frictionuq: honest error bars on semi-active friction dampers (L
                "and two backlash stages, calibrated with emcee)")
 
 
+def _seed(text: str) -> int:
+    """--seed: an integer the random generators take and the outputs can store."""
+    from ..errors import InputError, check_seed
+    try:
+        return check_seed(int(text), "seed")
+    except (ValueError, InputError):
+        from ..errors import MAX_SEED
+        raise argparse.ArgumentTypeError(f"takes an integer from 0 to {MAX_SEED}, got {text!r}") from None
+
+
 def _add_selection(s, max_steps_help: str) -> None:
     """Seed, test selection, step cap and the stored run's design, shared by the commands that
     run fits."""
     from ..infer.sampler import STORED_RUNS
-    s.add_argument("--seed", type=int, default=1)
+    s.add_argument("--seed", type=_seed, default=1)
     s.add_argument("--test", action="append", metavar="ID", help="only this test (repeatable)")
     s.add_argument("--kind", action="append", choices=["harmonic", "earthquake", "other"],
                    help="only tests of this kind (repeatable)")
@@ -97,7 +107,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("twin", help="write a paper-twin campaign (published parameters)")
     s.add_argument("device", choices=["brfd", "mfd"])
     s.add_argument("--out", required=True)
-    s.add_argument("--seed", type=int, default=2016)
+    s.add_argument("--seed", type=_seed, default=2016)
     s.set_defaults(func=C._cmd_twin)
 
     s = sub.add_parser("fit", help="Bayesian calibration (emcee): posteriors per applied force or per test")
@@ -125,7 +135,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("fit_dir", help="output folder of `frictionuq fit --by applied`")
     s.add_argument("--family", default="auto", choices=["auto", "linear", "threshold", "saturating"],
                    help="law of the friction forces and sigma0 (auto: best held-out ELPD)")
-    s.add_argument("--seed", type=int, default=1)
+    s.add_argument("--seed", type=_seed, default=1)
     s.set_defaults(func=C._cmd_law)
 
     s = sub.add_parser("validate", help="predict held-out measured tests from a fit and score the bands")
@@ -135,7 +145,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="held-out test id (repeatable)")
     s.add_argument("--out", required=True, help="output folder: validation.json, bands, figures")
     s.add_argument("--draws", type=int, default=400)
-    s.add_argument("--seed", type=int, default=1)
+    s.add_argument("--seed", type=_seed, default=1)
     s.set_defaults(func=C._cmd_validate)
 
     s = sub.add_parser("table", help="per-test table of a campaign, with a published-parameter simulation")
@@ -154,7 +164,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="applied force (or pressure), in the fitted campaign's applied unit")
     s.add_argument("--out", required=True, help="output folder (replaced atomically)")
     s.add_argument("--draws", type=int, default=400, help="posterior draws (default 400)")
-    s.add_argument("--seed", type=int, default=1)
+    s.add_argument("--seed", type=_seed, default=1)
     s.add_argument("--include-offset", action="store_true",
                    help="add the fitted load-cell offset to the noisy bands (default: excluded)")
     s.set_defaults(func=C._cmd_predict)
@@ -196,7 +206,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--max-effects", type=int, default=1, metavar="N",
                    help="name up to N effects, one per round, each screened against the model "
                         "with the ones named before (default 1)")
-    s.add_argument("--check-seed", action="append", type=int, metavar="N",
+    s.add_argument("--check-seed", action="append", type=_seed, metavar="N",
                    help="screen again with seed N (repeatable) and say whether every seed names "
                         "the same effects (one more screening each)")
     from ..workers import default_jobs
@@ -209,7 +219,8 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("run", help="run a workflow (make-like: only what is out of date)")
     s.add_argument("workflow", metavar="WORKFLOW", help="workflow file (TOML, e.g. workflows/quick.toml)")
     s.add_argument("targets", nargs="*", metavar="TARGET",
-                   help="ingest, fit, predict, compare, report or all (default), or a task name")
+                   help="ingest, fit, predict, compare, discrepancy, report or all (default), "
+                        "or a task name (`frictionuq status WORKFLOW` lists them)")
     s.add_argument("-j", "--jobs", type=int, default=1, help="fits in parallel (local processes)")
     s.add_argument("--scheduler", metavar="ADDRESS", default=None,
                    help="send fits to this Dask distributed scheduler (e.g. tcp://host:8786)")

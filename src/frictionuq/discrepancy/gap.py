@@ -120,8 +120,12 @@ def combined(level: str, gap: list[dict], log) -> list[dict]:
             continue
         c = {"level": level, "model": tag,
              **combine([g["diagnostics"] for g in gs], [g["test"] for g in gs])}
-        log(f"diagnostics {tag}, level {level}, its tests combined: significant structure in "
-            f"{', '.join(c['significant']) or 'none'}"
-            + (f" (not combined: {', '.join(c['excluded'])})" if c["excluded"] else ""))
+        if len(c["tests"]) >= 2:
+            log(f"diagnostics {tag}, level {level}, its tests combined: significant structure in "
+                f"{', '.join(c['significant']) or 'none'}"
+                + (f" (not combined: {', '.join(c['excluded'])})" if c["excluded"] else ""))
+        else:
+            log(f"diagnostics {tag}, level {level}: fewer than two tests to combine (left out "
+                f"for too few blocks in their null: {', '.join(c['excluded'])})")
         out.append(c)
     return out
