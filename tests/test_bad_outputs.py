@@ -236,3 +236,29 @@ def test_fit_into_its_campaign_and_a_test_validated_twice_are_refused(work, caps
                             "--test", "h-35N-0.05Hz", "--out", str(work / "v2")]),
               "--test h-35N-0.05Hz: given twice")
     assert not (work / "v2").exists()
+
+
+def test_a_folder_that_cannot_be_moved_aside_keeps_the_old_output_and_leaves_no_copy(tmp_path,
+                                                                                    monkeypatch):
+    """atomic.output_dir: when the existing output cannot be renamed (an immutable folder, as
+    root with chattr +i), one line of InputError, the previous output in place, and no hidden
+    temporary copy of the new one left beside it (both were left before 2026-12-05)."""
+    import os
+    from frictionuq import atomic
+    from frictionuq.errors import InputError
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "old.json").write_text("old")
+    real = os.replace
+
+    def stuck(src, dst):
+        if Path(src) == out.absolute():
+            raise PermissionError(1, "Operation not permitted", str(src))
+        return real(src, dst)
+
+    monkeypatch.setattr(os, "replace", stuck)
+    with pytest.raises(InputError, match=r"cannot write .*out: Operation not permitted"):
+        with atomic.output_dir(out) as tmp:
+            (tmp / "new.json").write_text("new")
+    assert [p.name for p in tmp_path.iterdir()] == ["out"]
+    assert [p.name for p in out.iterdir()] == ["old.json"]

@@ -37,15 +37,15 @@ applied = 20
 """
 
 
-def _csv(n=50, scale=1.0, applied=True, header="time,displacement,force"):
-    t = np.arange(n) * 0.01
+def _csv(n=50, scale=1.0, applied=True, header="time,displacement,force", t0=0.0):
+    t = t0 + np.arange(n) * 0.01
     x = 10 * np.sin(2 * np.pi * 0.5 * t)
     f = scale * np.cos(2 * np.pi * 0.5 * t)
     cols = [t, x, f]
     if applied:
         header += ",applied"
         cols.append(np.full(n, 10.0))
-    lines = [header] + [",".join(f"{v:.10g}" for v in row) for row in zip(*cols)]
+    lines = [header] + [",".join(f"{v:.17g}" for v in row) for row in zip(*cols)]
     return "\n".join(lines) + "\n"
 
 
@@ -111,9 +111,15 @@ def test_ingest_round_trip(tmp_path, capsys):
     b = fq.load_campaign(out)
     assert b.ingested
     for ta, tb in zip(a.tests, b.tests):
-        for k in ("t", "x", "force", "applied"):
-            np.testing.assert_allclose(getattr(tb.record, k), getattr(ta.record, k), rtol=1e-9)
-        assert ta.applied == pytest.approx(tb.applied)
+        for k in ("t", "x", "force", "applied"):       # every value exactly (17 digits)
+            np.testing.assert_array_equal(getattr(tb.record, k), getattr(ta.record, k))
+        assert ta.applied == tb.applied
+    # times of an absolute clock keep their fraction (at 10 digits 1733400000.01 s became
+    # 1733400000 s, and every later command refused the ingested folder)
+    clock = make_campaign(tmp_path / "clock", files={"h1": _csv(t0=1733400000.0)})
+    assert run_cli(["ingest", str(clock), "--out", str(tmp_path / "clock-in")], capsys)[0] == 0
+    np.testing.assert_array_equal(fq.load_campaign(tmp_path / "clock-in").test("h1").record.t,
+                                  fq.load_campaign(clock).test("h1").record.t)
     # a corrupted file of the ingested folder is detected by its hash
     f = out / "tests/h1.csv"
     f.write_text(f.read_text().replace("0.01,", "0.011,", 1))
@@ -202,6 +208,8 @@ def _bad_cases():
         ("inf", file_case(csv_with(11, 1, "inf")), ["h2.csv", "line 12", "not finite"]),
         ("time not increasing", file_case(csv_with(20, 0, "0.05")), ["h2.csv", "line 21", "not strictly increasing"]),
         ("duplicated id", toml_edit('id = "h2"', 'id = "h1"'), ["tests[1]", "duplicated test id 'h1'"]),
+        ("two quantities from one column", toml_edit('\n[[tests]]', '[columns]\ndisplacement = "time"\n[[tests]]'),
+         ["[columns]", "time and displacement are both read from column 'time'"]),
         ("unknown unit", toml_edit('force = "kN"', 'force = "tonnes"'), ["units.force", "'tonnes'"]),
         ("too few samples", file_case(_csv(n=9)), ["h2.csv", "9 samples", "at least 10"]),
         ("empty file", file_case(""), ["h2.csv", "empty"]),

@@ -29,6 +29,29 @@ def test_fit_refuses(tmp_path, capsys, extra, fragment):
     assert not (out / "summary.json").exists()
 
 
+def test_fit_refuses_an_out_folder_that_is_not_a_fit_folder_of_this_campaign(tmp_path, capsys):
+    """--out holding other files (a prediction's, one's own notes) or another campaign's fits is
+    refused before any work: a later `predict --out` there replaced the folder, fits and all
+    (a new user's trial, 2026-12-05). A fit folder of this campaign, or one whose fit was
+    interrupted before its first stored step, is accepted."""
+    from frictionuq.infer.fit import _check_fit_folder
+    from frictionuq.errors import InputError
+    out = tmp_path / "out"
+    (out / "applied-35N").mkdir(parents=True)
+    _check_fit_folder(out, "brfd-twin")                    # an interrupted fit: kept
+    (out / "applied-35N" / "chain.h5").write_bytes(b"")
+    (out / "summary.json").write_text('{"campaign": "brfd-twin", "fits": []}')
+    _check_fit_folder(out, "brfd-twin")
+    with pytest.raises(InputError, match="holds fits of campaign 'brfd-twin', not 'other'"):
+        _check_fit_folder(out, "other")
+    (out / "prediction.json").write_text("{}")
+    code = main(["fit", TWIN, "--out", str(out), "--test", "h-35N-0.05Hz"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert "holds prediction.json, not a fit folder's; choose an empty or new folder" in err
+    assert sorted(p.name for p in out.iterdir()) == ["applied-35N", "prediction.json", "summary.json"]
+
+
 @pytest.mark.parametrize("command, target", [
     ("fit", "frictionuq.infer.fit.fit_campaign"),
     ("compare", "frictionuq.infer.compare.compare_campaign"),

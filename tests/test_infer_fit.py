@@ -370,3 +370,21 @@ def test_the_summary_records_the_campaign_by_its_absolute_path(tmp_path, monkeyp
                       "camp")
     assert s["campaign_path"] == str(tmp_path.resolve() / "camp")
 
+
+
+def test_levels_that_share_a_fit_id_are_refused():
+    """Two applied levels apart by less than the id's 6 significant digits (29.8996 and
+    29.89964 lbf in a new user's campaign) made one folder and two summary entries of one id."""
+    from frictionuq.campaign import load_campaign
+    from frictionuq.errors import InputError
+    from frictionuq.infer.fit import plan
+    from pathlib import Path
+    camp = load_campaign(Path(__file__).resolve().parents[1] / "data" / "brfd-twin", read_records=False)
+    a, b = [t for t in camp.tests if t.applied == 133.0][:2]
+    b.applied = 133.0001
+    with pytest.raises(InputError, match=rf"tests '{a.id}' and '{b.id}' have applied levels that "
+                                         r"differ only beyond 6 significant digits \(both applied-133N\)"):
+        plan(camp, "applied", FitConfig(tests=(a.id, b.id)))
+    b.applied = 133.001                      # 6 digits apart: two levels, two ids
+    assert [s.id for s in plan(camp, "applied", FitConfig(tests=(a.id, b.id)))] == [
+        "applied-133N", "applied-133.001N"]

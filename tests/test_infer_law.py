@@ -55,13 +55,14 @@ def test_heldout_prefers_the_generating_family():
     assert d.sum() < 2 * math.sqrt(d.size * np.var(d)) + 1.0
 
 
-def _fake_fit_dir(tmp_path, fc_of_a, k2=5e4, n=400, seed=0, A=A):
+def _fake_fit_dir(tmp_path, fc_of_a, k2=5e4, n=400, seed=0, A=A, ids=None):
     """A `fit --by applied` folder whose posteriors are known: fc_fwd log-normal around
-    fc_of_a(a) (sd 2 %), k2 shared, fs_fwd = 1.2 fc_fwd (perfectly correlated)."""
+    fc_of_a(a) (sd 2 %), k2 shared, fs_fwd = 1.2 fc_fwd (perfectly correlated). ids: the fits'
+    ids (a `--by test` folder's are the tests')."""
     rng = np.random.default_rng(seed)
     fits = []
-    for a in A:
-        fid = f"applied-{a:.4g}N"
+    for i, a in enumerate(A):
+        fid = ids[i] if ids else f"applied-{a:.4g}N"
         fc = fc_of_a(a) * np.exp(0.02 * rng.standard_normal((2, n)))
         post = {"fc_fwd": fc, "fs_fwd": 1.2 * fc, "k2": k2 * np.exp(0.05 * rng.standard_normal((2, n)))}
         (tmp_path / fid).mkdir()
@@ -112,6 +113,15 @@ def test_law_needs_levels_and_a_folder(tmp_path):
         law.fit_law(tmp_path)
     with pytest.raises(InputError, match="law.json"):
         law.draws_at(tmp_path, 100.0, 10, np.random.default_rng(0))
+
+
+def test_a_by_test_folder_with_one_force_is_refused(tmp_path):
+    """Two fits of one applied force (`fit --by test` on two tests at 133 N) are not two levels:
+    law fitted a 'law' on [133, 133] until 2026-12-05."""
+    d = _fake_fit_dir(tmp_path, lambda a: 1.5 * a, A=(133.0, 133.0), ids=("h-133N-0.5Hz", "h-133N-0.2Hz"))
+    with pytest.raises(InputError, match=r"needs one fit per applied force at 2 or more forces > 0 "
+                                         r"\(found 2 fit\(s\) at 1 force\(s\)\)"):
+        law.fit_law(d)
 
 
 def test_zero_force_level_is_left_out_of_the_law(tmp_path):

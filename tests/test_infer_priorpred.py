@@ -4,7 +4,7 @@ import pytest
 
 from frictionuq.campaign import load_campaign
 from frictionuq.infer import fit as F
-from frictionuq.infer.priorpred import prior_predictive
+from frictionuq.infer.priorpred import outside, prior_predictive
 
 
 def _logpost(path, test_id, priors=None):
@@ -23,6 +23,7 @@ def test_default_priors_cover_the_data(path, test_id):
     rec = r["records"][test_id]
     assert rec["non_finite_draws"] == 0
     assert r["passed"], rec
+    assert outside(r) == []
     # and the priors are not absurdly wide: the measured peak is not in the extreme percent
     assert 0.02 < rec["peak_N"]["quantile_of_measured"] < 0.98
 
@@ -33,3 +34,8 @@ def test_a_prior_that_excludes_the_data_fails():
            "fc_bwd": {"dist": "loguniform", "lower": 1.0, "upper": 10.0}}
     r = prior_predictive(_logpost("data/brfd-twin", "h-267N-0.5Hz", bad), n=200, seed=0)
     assert not r["passed"]
+    # the fit's log line names the figures that failed (it read as the rule itself before)
+    said = outside(r)
+    assert said and all(p.startswith("test h-267N-0.5Hz: ") for p in said), said
+    assert any("peak" in p and "above the prior predictive's q99" in p and p.endswith(" kN")
+               for p in said), said

@@ -112,10 +112,16 @@ def output_dir(path):
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     old = None
-    if path.exists():
-        old = path.with_name(f".{path.name}.old-{os.getpid()}")
-        os.replace(path, old)
-    os.replace(tmp, path)
+    try:
+        if path.exists():
+            old = path.with_name(f".{path.name}.old-{os.getpid()}")
+            os.replace(path, old)
+        os.replace(tmp, path)
+    except OSError as e:      # the folder cannot be moved aside (immutable, a mount point ...)
+        shutil.rmtree(tmp, ignore_errors=True)
+        if old is not None and old.exists() and not path.exists():
+            os.replace(old, path)                   # the previous output, back in its place
+        raise _cannot_write(path, e, path) from None
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
 

@@ -197,6 +197,13 @@ def parse_config(doc: dict, toml: Path) -> dict:
     cols = _get(w, doc, "columns", dict, False) or {}
     _unknown(f"{w}, table [columns]", cols, COLUMN_KEYS, "column key")
     cfg["columns"] = {k: _get(f"{w}, table [columns]", cols, k, str) for k in cols}
+    used = {}                                 # header name -> the quantity read from it
+    for k in ("time", "displacement", "force", "applied"):
+        name = cfg["columns"].get(k, k)
+        if name in used:
+            raise InputError(f"{w}, table [columns]: {used[name]} and {k} are both read from "
+                             f"column {name!r}; each quantity needs its own column")
+        used[name] = k
     cfg["meta"] = {k: doc[k] for k in ("twin", "source") if k in doc}
     tests = _get(w, doc, "tests", list)
     if not tests:

@@ -12,6 +12,7 @@ Layout of an output folder:
 """
 from __future__ import annotations
 
+import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -95,8 +96,15 @@ def plan(campaign, by: str = "applied", config: FitConfig | None = None) -> list
         key = round(t.applied, 9)
         groups.setdefault(key, []).append(t)
     unit = campaign.units.get("applied", "N")
-    return [FitSpec(f"applied-{_fmt_applied(a, unit)}", g, a, config)
-            for a, g in sorted(groups.items())]
+    specs = [FitSpec(f"applied-{_fmt_applied(a, unit)}", g, a, config)
+             for a, g in sorted(groups.items())]
+    for s0, s1 in zip(specs, specs[1:]):    # levels apart by less than the id's 6 digits
+        if s0.id == s1.id:
+            raise InputError(
+                f"campaign {campaign.name!r}: tests {s0.tests[0].id!r} and {s1.tests[0].id!r} have "
+                f"applied levels that differ only beyond 6 significant digits (both "
+                f"{s0.id}): give them the same value in campaign.toml if they are one level")
+    return specs
 
 
 def _check_noise_overrides(overrides: dict, where: str) -> None:
@@ -189,10 +197,11 @@ def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True
         theta0 = space.to_theta({n: start[n] for n in space.names})
     log(f"fit {spec.id}: {len(records)} tests, {sum(r.n for r in records)} samples after decimation "
         f"(factors {[r.q for r in records]}), {space.ndim} free parameters")
-    from .priorpred import prior_predictive
+    from .priorpred import outside, prior_predictive
     ppc = prior_predictive(logpost, n=200, seed=spec.config.seed)
-    log(f"fit {spec.id}: prior predictive check {'passed' if ppc['passed'] else 'FAILED'} "
-        "(measured peak, trough and energy inside the central 98 % of the prior predictive)")
+    log(f"fit {spec.id}: prior predictive check: " + (
+        "passed (measured peak, trough and energy inside the central 98 % of the prior "
+        "predictive)" if ppc["passed"] else "FAILED: " + "; ".join(outside(ppc))))
     res = sample(logpost, scales, spec.config.seed, fdir / "chain.h5", spec.config.sampler,
                  resume=resume, log=lambda m: log(f"fit {spec.id}: {m}"), start=theta0,
                  run_key=run_key(spec, space, records))
@@ -284,6 +293,7 @@ def fit_campaign(campaign_path, out_dir, by: str = "applied", config: FitConfig 
     if Path(out_dir).resolve() == Path(campaign_path).resolve():
         raise InputError(f"--out {out_dir}: must differ from the campaign folder (the fits would "
                          "be written among its records)")
+    _check_fit_folder(Path(out_dir), camp.name)
     specs = plan(camp, by, config)
     for s in specs:               # every fit's priors and walkers checked before the first fit
         space = build_space(s, record_scales([t.record for t in s.tests]))
@@ -301,6 +311,36 @@ def fit_campaign(campaign_path, out_dir, by: str = "applied", config: FitConfig 
             fits = w.map(_run_fit_job, [(s, str(out_dir), camp.name, resume, log is not None)
                                         for s in specs])
     return write_summary(out_dir, camp, by, config or FitConfig(), fits, campaign_path, log=log)
+
+
+#: the files a fit folder holds beside its fits' own folders (summary, law, advantage)
+FIT_FOLDER_FILES = {"summary.json", "law.json", "advantage.csv", "advantage.json"}
+
+
+def _check_fit_folder(out: Path, campaign_name: str) -> None:
+    """--out: empty or new, or a fit folder of this campaign (fits resume or are added there).
+    A folder with other files (a prediction's, an ingested campaign's, one's own notes) is
+    refused: a later command replacing it as its own output would take the fits with it; and
+    so is another campaign's fit folder, whose fits would stay listed beside this one's."""
+    if not out.is_dir():
+        return
+    def fit_own(d: Path) -> bool:          # a fit's folder, maybe of an interrupted run
+        return all(q.name in ("fit.json", "posterior.nc") or q.name.startswith(("chain", "."))
+                   for q in d.iterdir())
+    foreign = sorted(p.name for p in out.iterdir() if not p.name.startswith(".") and
+                     (p.is_file() and p.name not in FIT_FOLDER_FILES or p.is_dir() and not fit_own(p)))
+    if foreign:
+        raise InputError(f"--out {out}: holds {', '.join(foreign[:3])}"
+                         f"{', ...' if len(foreign) > 3 else ''}, not a fit folder's; choose an "
+                         "empty or new folder")
+    s = out / "summary.json"
+    try:
+        other = json.loads(s.read_text()).get("campaign") if s.is_file() else None
+    except (OSError, ValueError, AttributeError):
+        raise InputError(f"{s}: not a readable fit summary; choose an empty or new --out") from None
+    if other is not None and other != campaign_name:
+        raise InputError(f"--out {out}: holds fits of campaign {other!r}, not {campaign_name!r}; "
+                         "choose an empty or new folder")
 
 
 def _run_fit_job(job) -> dict:

@@ -216,10 +216,11 @@ def fit_law(fit_dir, family: str = "auto", seed: int = 1, compare: bool = True, 
     if excluded:
         log(f"law: levels at zero applied force left out ({', '.join(excluded)}): every family "
             "is a function of log force, and a level at zero force is outside its support")
-    if len(levels) < 2:
-        raise InputError(f"{fit_dir}: a force-dependence law needs fits at 2 or more applied forces "
-                         f"> 0 (found {len(levels)}); fit with --by applied on a campaign with "
-                         "several levels")
+    n_forces = len({L["applied"] for L in levels})     # a --by test folder: one fit per test
+    if n_forces < 2 or n_forces < len(levels):
+        raise InputError(f"{fit_dir}: a force-dependence law needs one fit per applied force at 2 "
+                         f"or more forces > 0 (found {len(levels)} fit(s) at {n_forces} "
+                         "force(s)); fit with --by applied on a campaign with several levels")
     models = {(L["model"], L["effects"]) for L in levels}
     if len(models) > 1:
         raise InputError(f"{fit_dir}: the fits use different models/effects {sorted(models)}")

@@ -51,3 +51,20 @@ def prior_predictive(logpost, n: int = 200, seed: int = 0) -> dict:
         ok_all &= r["non_finite_draws"] == 0
     out["passed"] = bool(ok_all)
     return out
+
+
+def outside(check: dict) -> list[str]:
+    """The figures of a check that failed, as phrases: 'test t: peak 16.1 kN above the prior
+    predictive's q99 14.5 kN', and draws whose simulation was not finite."""
+    out = []
+    for rid, r in check["records"].items():
+        if r["non_finite_draws"]:
+            out.append(f"test {rid}: {r['non_finite_draws']} draws not finite")
+        for k, what, unit, scale in (("peak_N", "peak", "kN", 1e-3), ("trough_N", "trough", "kN", 1e-3),
+                                     ("energy_J", "energy", "J", 1.0)):
+            f = r[k]
+            if not f["inside"]:
+                side, q = ("above", "q99") if f["measured"] > f["q99"] else ("below", "q1")
+                out.append(f"test {rid}: {what} {f['measured'] * scale:.4g} {unit} {side} the prior "
+                           f"predictive's {q} {f[q] * scale:.4g} {unit}")
+    return out
