@@ -173,6 +173,23 @@ def test_cli_refuses_a_folder_that_is_not_a_fit(tmp_path, capsys):
     assert not out.exists()
 
 
+def test_a_zero_force_level_is_said_and_a_campaign_is_no_out(fit_dir, tmp_path, capsys):
+    """A fit at zero applied force (ARTS 0 lb) has no row, and advantage.json and the command
+    line say why (it was dropped silently); --out that is a campaign folder is refused."""
+    from frictionuq.advantage import zero_force_fits
+    assert zero_force_fits({"fits": [{"id": "applied-0lb", "applied": 0.0},
+                                     {"id": "applied-36lb", "applied": 160.1}]}) == ["applied-0lb"]
+    camp = tmp_path / "camp"
+    camp.mkdir()
+    (camp / "campaign.toml").write_text("name = 'x'\n")
+    assert main(["advantage", str(fit_dir), "--out", str(camp)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "a campaign folder" in err
+    assert sorted(p.name for p in camp.iterdir()) == ["campaign.toml"]
+    write_advantage(fit_dir, tmp_path / "adv")
+    assert json.loads((tmp_path / "adv" / "advantage.json").read_text())["no_row"] == []
+
+
 def test_with_the_real_law(fit_dir, tmp_path, capsys):
     """With the folder's own force-dependence law (frictionuq.infer.law, linear family): rows at
     the geometric midpoint of the two levels, and predictions there come from the law."""
@@ -183,6 +200,9 @@ def test_with_the_real_law(fit_dir, tmp_path, capsys):
     shutil.copytree(fit_dir, fd, ignore=shutil.ignore_patterns("chain.h5", "advantage.*"))
     fit_law(fd, family="linear", compare=False)
     df = advantage(fd)
+    write_advantage(fd, tmp_path / "adv")
+    from frictionuq.infer.law import law_entry
+    assert json.loads((tmp_path / "adv" / "advantage.json").read_text())["law"] == law_entry(fd)
     law = df[df["source"] == "force-dependence law"]
     assert len(law) == 2 and law["applied"].iloc[0] == pytest.approx(math.sqrt(133 * 267))
     lo = df[(df["applied"] == 133) & (df["direction"] == "fwd")]["C_mean"].iloc[0]
@@ -192,6 +212,8 @@ def test_with_the_real_law(fit_dir, tmp_path, capsys):
     assert c["C_q2.5"] < c["C_q97.5"] and min(lo, hi) * 0.5 < math.sqrt(c["C_q2.5"] * c["C_q97.5"]) < max(lo, hi) * 2
     meta = write_prediction(fd, tmp_path / "p", harmonic=(0.0254, 0.2), applied=200, n_draws=50)
     assert meta["draws_source"] == "force-dependence law" and meta["applied"]["unit"] == "N"
+    from frictionuq.infer.law import law_entry      # which law: refitting it changes the hash
+    assert meta["law"] == law_entry(fd) and meta["law"]["sha256"]
     assert meta["fits"] == ["applied-267N"]           # noise from the nearest level (log force)
     assert meta["applied_range"]["beyond"] is False   # between the levels
     # far above the fitted levels (a pressure in Pa typed into a psi campaign lands there): the

@@ -103,7 +103,7 @@ def test_ingest_round_trip(tmp_path, capsys):
     code, so, se = run_cli(["ingest", str(c), "--out", str(out)], capsys)
     assert code == 0, se
     m = json.loads((out / "manifest.json").read_text())
-    assert m["package_version"] == fq.__version__
+    assert m["package_version"] == fq.__version__ and m["environment"]["packages"]["numpy"]
     assert m["units"] == {"time": "s", "displacement": "m", "force": "N", "applied": "N"}
     assert [t["id"] for t in m["tests"]] == ["h1", "h2"]
     assert all(len(t["source_sha256"]) == 64 for t in m["tests"])

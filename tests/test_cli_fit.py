@@ -260,3 +260,30 @@ def test_temperatures_option_reaches_the_sampler_config(tmp_path, monkeypatch):
         seen = _configs_seen(monkeypatch, "frictionuq.infer.fit.fit_campaign",
                              ["fit", TWIN, "--out", str(tmp_path / "o")] + flag)
         assert seen and all(c.sampler.temperatures == want for c in seen), seen
+
+
+def test_records_that_cannot_be_fitted_are_named(tmp_path, capsys):
+    """A record too short for the displacement-noise estimate, and one whose force does not
+    follow the motion (no sliding plateaus), are named in the one-line error (the test id and
+    the fit), by `table` and `fit` (they were not until 2026-12-05)."""
+    import numpy as np
+    (tmp_path / "c" / "tests").mkdir(parents=True)
+    for name, n in (("short", 12), ("z", 500)):
+        t = np.arange(n) * 0.01
+        x = 0.01 * np.sin(2 * np.pi * 0.5 * t)
+        f = -1000.0 * np.sign(np.cos(2 * np.pi * 0.5 * t))     # against the motion's direction
+        np.savetxt(tmp_path / "c" / "tests" / f"{name}.csv", np.column_stack([t, x, f]),
+                   delimiter=",", header="time,displacement,force", comments="")
+    (tmp_path / "c" / "campaign.toml").write_text(
+        'name = "m"\n[units]\ntime = "s"\ndisplacement = "m"\nforce = "N"\napplied = "N"\n'
+        '[[tests]]\nid = "short"\nfile = "tests/short.csv"\napplied = 10\n'
+        '[[tests]]\nid = "z"\nfile = "tests/z.csv"\napplied = 20\n')
+    for argv, fragment in (
+            (["table", str(tmp_path / "c")], "test short: need at least 14 samples"),
+            (["fit", str(tmp_path / "c"), "--out", str(tmp_path / "o"), "--test", "z"],
+             "fit applied-20N: cannot derive priors: the records show no forward and backward "
+             "sliding plateaus")):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and fragment in err, err
+    assert "none in test(s) z" in err and not (tmp_path / "o" / "summary.json").exists()

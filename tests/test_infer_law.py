@@ -106,6 +106,13 @@ def test_fit_law_and_draws_at(tmp_path):
     text = (d / "law.json").read_text()
     law.fit_law(d, seed=2)
     assert (d / "law.json").read_text() == text
+    # the summary names the law now in the folder, with its hash (after a refit with another
+    # family too: it said the first family until 2026-12-05)
+    entry = json.loads((d / "summary.json").read_text())["law"]
+    assert entry == law.law_entry(d) and entry["family"] == doc["family"] and len(entry["sha256"]) == 64
+    other = "threshold" if doc["family"] != "threshold" else "linear"
+    law.fit_law(d, family=other, seed=2)
+    assert json.loads((d / "summary.json").read_text())["law"]["family"] == other
 
 
 def test_law_needs_levels_and_a_folder(tmp_path):

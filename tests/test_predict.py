@@ -142,6 +142,7 @@ def _fake_law(monkeypatch, params, calls):
         calls.append(applied_si)
         return {k: np.full(n, float(v)) for k, v in params.items()}, "three_stage", ()
     mod.draws_at = draws_at
+    mod.law_entry = lambda fit_dir: {"file": "law.json", "family": "fake", "sha256": "0" * 64}
     monkeypatch.setitem(sys.modules, "frictionuq.infer.law", mod)
 
 
@@ -157,7 +158,7 @@ def test_law_draws_between_levels_and_coulomb_energy(fit_dir, tmp_path, monkeypa
     _fake_law(monkeypatch, coul, calls)
     meta = write_prediction(fit_dir, tmp_path / "p", harmonic=(AMP, FREQ), applied=0.2, n_draws=50)
     assert calls == [pytest.approx(200.0)]             # 0.2 kN -> 200 N
-    assert meta["draws_source"] == "force-dependence law"
+    assert meta["draws_source"] == "force-dependence law" and meta["law"]["family"] == "fake"
     b = _bands(tmp_path / "p" / "bands.csv")
     t, x = harmonic_input(AMP, FREQ)
     np.testing.assert_allclose(b["force_model_q2.5"], b["force_model_q97.5"], rtol=0, atol=1e-6)
@@ -351,3 +352,32 @@ def test_an_unfitted_level_without_a_law_says_what_can_be_done(fit_dir):
     with pytest.raises(InputError, match="none can be fitted: it needs fits at 2 or more applied "
                                          "forces > 0, this folder has 1"):
         predict(fit_dir, 500.0, t, x, n_draws=20)
+
+
+def test_a_level_typed_to_a_few_digits_is_that_level(fit_dir, tmp_path):
+    """--applied within draws.REL_TOL (1e-3) of a fitted level is that level, as `table` (4
+    digits) and fit ids (6) show it; it went to the law (or was refused without one) at 1e-6.
+    Further away, as before, the law (none here: refused)."""
+    meta = write_prediction(fit_dir, tmp_path / "p", harmonic=(AMP, FREQ), applied=0.26705, n_draws=20)
+    assert meta["draws_source"].startswith("posterior of fit ") and "nearest the requested" in meta["draws_source"]
+    exact = write_prediction(fit_dir, tmp_path / "q", harmonic=(AMP, FREQ), applied=0.267, n_draws=20)
+    assert "nearest" not in exact["draws_source"]
+    with pytest.raises(InputError, match="no usable force-dependence law"):
+        write_prediction(fit_dir, tmp_path / "r", harmonic=(AMP, FREQ), applied=0.2675, n_draws=20)
+
+
+def test_validate_says_where_it_extrapolates(fit_dir, tmp_path, capsys):
+    """validate scores a measured test whose stroke is three times the fitted records': like
+    predict, it records the input's range (validation.json) and says it extrapolates (the CLI's
+    note), which it did not until 2026-12-05."""
+    from frictionuq.cli import main
+    t = np.arange(0, 10.0, 0.01)
+    x = 3 * AMP * np.sin(2 * np.pi * FREQ * t)
+    camp = tiny_campaign(tmp_path / "big", t, x, simulate(t, x, TRUTH) + OFFSET, "kN", 0.267)
+    assert main(["validate", str(fit_dir), str(camp), "--test", "h1", "--out", str(tmp_path / "v"),
+                 "--draws", "20"]) == 0
+    err = capsys.readouterr().out
+    doc = json.loads((tmp_path / "v" / "validation.json").read_text())
+    r = doc["tests"][0]
+    assert r["fitted_range"]["beyond"] == ["stroke", "peak speed"] and not r["applied_range"]["beyond"]
+    assert "note: h1: the input goes beyond the fitted records (stroke, peak speed)" in err, err

@@ -124,6 +124,13 @@ def _fc(post, direction: str) -> np.ndarray:
     raise InputError(f"fit {post.id}: no {name} among its free or fixed parameters")
 
 
+def zero_force_fits(summary: dict) -> list[str]:
+    """Fits at zero applied force: no row (C = fc / applied is undefined there), said so in
+    advantage.json and by the command line."""
+    return [f["id"] for f in summary["fits"]
+            if f.get("applied") is not None and not float(f["applied"]) > 0]
+
+
 def advantage(fit_dir, law: bool = True) -> pd.DataFrame:
     """One row per fitted applied force (> 0) and direction (module docstring); with law=True
     and a force-dependence law in the folder, also rows at interpolated forces."""
@@ -227,12 +234,19 @@ def write_advantage(fit_dir, out_dir=None) -> pd.DataFrame:
     out = Path(out_dir) if out_dir is not None else Path(fit_dir)
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out}: exists and is not a folder")
+    if any((out / f).is_file() for f in ("campaign.toml", "manifest.json")):
+        raise InputError(f"--out {out}: a campaign folder; write the table beside the fits "
+                         "(the default) or to a folder of its own")
     summary = load_summary(fit_dir)
     camp = campaign_of(summary)
+    from .infer.law import law_entry
     doc = {"package_version": __version__, "environment": environment(),
            "fit_dir": str(Path(fit_dir).resolve()), "campaign": summary.get("campaign"),
            # the law rows' draws come from this seed; the fits' own seed and config as fitted
            "seed": LAW_SEED, "fit_config": summary.get("config"),
+           "law": law_entry(fit_dir) if (df["source"] == LAW_SOURCE).any() else None,
+           "no_row": [{"fit": i, "reason": "zero applied force: C = fc / applied is undefined"}
+                      for i in zero_force_fits(summary)],
            "not_converged_fits": not_converged(summary, fits_behind(df, summary)),
            "device": getattr(camp, "device", None), "geometry": getattr(camp, "geometry", None),
            "formula": "C = fc_dir / applied; mu = ln(1 + C damping_radius / drum_radius) / "

@@ -1,7 +1,8 @@
 """The parameter draws a prediction uses at an applied force F (SI), from a fit output folder
 (`frictionuq fit`, see frictionuq.infer.fit).
 
-If F is a fitted level (summary.json fits[i]["applied"], relative tolerance 1e-6), the joint
+If F is a fitted level (summary.json fits[i]["applied"]; the nearest level within a relative
+REL_TOL, so that a level typed as `table` or a fit id shows it, to 4-6 digits, is that level), the joint
 posterior draws of that fit (free parameters from posterior.nc, fixed ones from fit.json), with
 its model and effects; several fits at the same level (`fit --by test`) are pooled with equal
 weight. Otherwise the force-dependence law of the folder (frictionuq.infer.law.draws_at); without
@@ -23,7 +24,10 @@ from . import params as P
 from .errors import InputError
 from .fitdir import FitPosterior, fitted_levels, load_posterior, load_summary
 
-REL_TOL = 1e-6
+#: a requested force within this relative distance of a fitted level is that level: `table`
+#: shows levels to 4 significant digits, fit ids to 6 (29.8996 lbf typed as 29.9 is 1.3e-5 away;
+#: with 1e-6 it went to the force-dependence law, or was refused without one)
+REL_TOL = 1e-3
 LIKELIHOOD_ONLY = set(P.LIKELIHOOD_NAMES)
 
 
@@ -106,8 +110,11 @@ def choose_draws(fit_dir, applied_si: float, n: int, rng, summary: dict | None =
     level, else the folder's force-dependence law (module docstring)."""
     summary = summary or load_summary(fit_dir)
     a = float(applied_si)
+    at = [float(f["applied"]) for f in summary["fits"] if f.get("applied") is not None]
+    near = [v for v in at if abs(v - a) <= REL_TOL * max(abs(v), 1e-300)]
+    level = min(near, key=lambda v: abs(v - a)) if near else None     # the nearest one only
     match = [f for f in summary["fits"] if f.get("applied") is not None
-             and abs(float(f["applied"]) - a) <= REL_TOL * max(abs(float(f["applied"])), 1e-300)]
+             and float(f["applied"]) == level]
     if match:
         posts = [load_posterior(fit_dir, f["id"]) for f in match]
         kinds = {(p.model, p.effects) for p in posts}
@@ -118,6 +125,8 @@ def choose_draws(fit_dir, applied_si: float, n: int, rng, summary: dict | None =
         ids = [p.id for p in posts]
         src = f"posterior of fit {ids[0]}" if len(ids) == 1 else \
             f"posterior of fits {', '.join(ids)} (equal-weight mixture)"
+        if level != a:
+            src += f", the fitted level {_shown([level], summary)} nearest the requested one"
         params = {k: v for k, v in d.items() if not k.startswith("_") and k not in LIKELIHOOD_ONLY}
         return Draws(params, posts[0].model, posts[0].effects, d.get("force_offset", np.zeros(n)),
                      d["_sigma"], d["_phi"], d["_rate"], src, ids, d["_theta"])

@@ -21,6 +21,7 @@ import numpy as np
 
 from . import atomic
 from .campaign import Campaign, Record, Test, load_campaign, sha256_file
+from .environment import environment
 from .errors import InputError
 from .records import read_csv
 
@@ -49,7 +50,8 @@ def ingest(campaign_dir, out) -> dict:
     atomic.check_replaceable(camp_path, out, "manifest.json", "campaign", "an ingested campaign")
     from .units import SI
     manifest = {
-        "format": FORMAT, "package_version": __version__, "name": camp.name, "device": camp.device,
+        "format": FORMAT, "package_version": __version__, "environment": environment(),
+        "name": camp.name, "device": camp.device,
         "description": camp.description, "source_folder": str(camp_path.resolve()),
         "source_units": camp.units, "columns": camp.columns, "geometry": camp.geometry,
         "units": {"time": SI["time"], "displacement": SI["displacement"], "force": SI["force"],

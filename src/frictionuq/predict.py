@@ -326,12 +326,14 @@ def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied
                    include_offset=include_offset, applied_signal=sig, samples_per_cycle=spc,
                    summary=summary, drive_lowpass=lowpass_mult)
     behind = pred.draws.resting_on(summary)
+    from .infer.law import law_entry
     meta = {"package_version": __version__, "environment": environment(),
             "fit_dir": str(Path(fit_dir).resolve()), "campaign": summary.get("campaign"),
             "fitted_range": pred.fitted_range, "applied_range": pred.applied_range,
             "applied": {"si": a_si, "si_unit": U.si_unit_of_applied(unit), "value": value,
                         "unit": unit, "unit_source": unit_src},
             "draws_source": pred.draws.source, "fits": pred.draws.fits,
+            "law": law_entry(fit_dir) if pred.draws.source == LAW_SOURCE else None,
             "not_converged_fits": not_converged(summary, behind),
             "model": pred.draws.model,
             "effects": list(pred.draws.effects), "n_draws": int(n_draws), "seed": int(seed),

@@ -46,7 +46,10 @@ def campaign_frame(path, published: str = "none", eps="auto") -> tuple[pd.DataFr
     rows = []
     for te in camp.tests:
         r = te.record
-        e = _eps(eps, r.x)
+        try:
+            e = _eps(eps, r.x)
+        except ValueError as err:        # too short a record for the noise estimate
+            raise InputError(f"test {te.id}: {err}") from None
         row = {"test": te.id, f"applied ({unit})": U.from_si(te.applied, "applied", unit),
                "kind": te.kind, "freq (Hz)": te.frequency_hz if te.frequency_hz else np.nan,
                "samples": r.n, "rate (Hz)": r.rate_hz,

@@ -27,6 +27,7 @@ import numpy as np
 from . import atomic
 from .environment import environment, png_metadata
 from .errors import InputError, check_draws, check_seed
+from .units import from_si
 
 
 def score(y: np.ndarray, bands) -> dict:
@@ -122,14 +123,21 @@ def validate(fit_dir, campaign_path, test_ids, out_dir, *, n_draws: int = 400, s
         for tid in test_ids:
             te = by_id[tid]
             r = te.record
-            eps = default_eps(r.x)
+            try:
+                eps = default_eps(r.x)
+            except ValueError as e:      # too short a record for the noise estimate
+                raise InputError(f"test {tid}: {e}") from None
             lowpass_mult = fit_drive_lowpass(summary, eps)   # filtered like the fit's records
             p = predict(fit_dir, te.applied, r.t, r.x, eps=eps, n_draws=n_draws, seed=seed,
                         include_offset=True, summary=summary, drive_lowpass=lowpass_mult)
             s = score(r.force, p.bands)
+            unit = camp.units.get("applied", "N")
             s.update(test=tid, applied_si=te.applied, kind=te.kind, eps_m=eps,
                      drive_lowpass=lowpass_mult,
-                     held_out=tid not in fitted_tests, draws_source=p.draws.source)
+                     held_out=tid not in fitted_tests, draws_source=p.draws.source,
+                     # where the prediction extrapolates (extrapolation.notes reads these)
+                     applied={"value": float(from_si(te.applied, "applied", unit)), "unit": unit},
+                     fitted_range=p.fitted_range, applied_range=p.applied_range)
             results.append(s)
             behind += p.draws.resting_on(summary)
             atomic.write_text(tmp / f"{tid}.bands.csv", p.bands.to_csv(index=False))

@@ -78,9 +78,10 @@ def _cmd_validate(a):
               + ("" if r["held_out"] else "  (NOT held out: the fit saw this test)"))
     print("cover95/cover50: fraction of measured samples inside the 95 %/50 % band; NRMSE: RMSE of "
           "the median / the measured force's peak to peak")
+    from ..extrapolation import notes
     from ..validate import calibration_notes
     for r in doc["tests"]:
-        for line in calibration_notes(r):
+        for line in calibration_notes(r) + notes(r):
             print(f"note: {r['test']}: {line}")
     _note_not_converged(doc["not_converged_fits"], "the predictions are drawn")
 
@@ -129,6 +130,11 @@ def _cmd_advantage(a):
     from ..fitdir import load_summary, not_converged
     summary = load_summary(a.fit_dir)
     _note_not_converged(not_converged(summary, fits_behind(df, summary)), "C and mu are drawn")
+    from ..advantage import zero_force_fits
+    zero = zero_force_fits(summary)
+    if zero:
+        print(f"note: no row for {', '.join(zero)}: at zero applied force C = fc / applied is "
+              "undefined", file=sys.stderr)
 
 
 def _cmd_compare(a):

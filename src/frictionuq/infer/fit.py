@@ -59,6 +59,22 @@ def jsonable(obj):
     return obj
 
 
+def _scales(spec: FitSpec) -> dict:
+    """record_scales of a fit's tests; when they show no sliding plateaus, the error names the
+    fit and the tests that show none on their own."""
+    try:
+        return record_scales([t.record for t in spec.tests])
+    except InputError as e:
+        bad = []
+        for t in spec.tests:
+            try:
+                record_scales([t.record])
+            except InputError:
+                bad.append(t.id)
+        raise InputError(f"fit {spec.id}: {e}" + (f"; none in test(s) {', '.join(bad)}" if bad
+                                                  else "")) from None
+
+
 def _fmt_applied(value_si: float, unit: str) -> str:
     v = from_si(value_si, "applied", unit)
     return f"{v:g}{unit}"
@@ -172,7 +188,7 @@ def prepare(spec: FitSpec):
     if c.simulate_at not in SIMULATE_AT:
         raise InputError(f"fit: simulate_at must be one of {', '.join(SIMULATE_AT)}, got {c.simulate_at!r}")
     records = records_from_tests(spec.tests, **c.record_options())
-    scales = record_scales([t.record for t in spec.tests])
+    scales = _scales(spec)
     space = build_space(spec, scales)
     return records, scales, space, LogPosterior(space, records)
 
@@ -296,7 +312,7 @@ def fit_campaign(campaign_path, out_dir, by: str = "applied", config: FitConfig 
     _check_fit_folder(Path(out_dir), camp.name)
     specs = plan(camp, by, config)
     for s in specs:               # every fit's priors and walkers checked before the first fit
-        space = build_space(s, record_scales([t.record for t in s.tests]))
+        space = build_space(s, _scales(s))
         try:
             _nwalkers(s.config.sampler, space.ndim)
         except ValueError as e:
@@ -359,7 +375,7 @@ def write_summary(out_dir, camp, by: str, config: FitConfig, fits: list[dict], c
     levels above zero (and `law`), fit the force-dependence law (law.json, named in the summary;
     a stale law.json is removed otherwise). Returns the summary."""
     from .. import __version__
-    from .law import LAW_FILE, fit_law
+    from .law import LAW_FILE, fit_law, law_entry
     log = log or (lambda m: None)
     out_dir = Path(out_dir)
     summary = {"package_version": __version__, "environment": environment(), "campaign": camp.name,
@@ -371,9 +387,8 @@ def write_summary(out_dir, camp, by: str, config: FitConfig, fits: list[dict], c
     (out_dir / LAW_FILE).unlink(missing_ok=True)
     atomic.write_json(out_dir / "summary.json", jsonable(summary))
     if law and by == "applied" and sum(1 for f in fits if (f.get("applied") or 0) > 0) >= 2:
-        doc = fit_law(out_dir, family=family, seed=config.seed, log=log)
-        summary["law"] = {"file": LAW_FILE, "family": doc["family"]}
-        atomic.write_json(out_dir / "summary.json", jsonable(summary))
+        fit_law(out_dir, family=family, seed=config.seed, log=log)    # names itself in summary.json
+        summary["law"] = law_entry(out_dir)
     else:
         log("force-dependence law not fitted (needs fits by applied force at 2 or more levels "
             "above zero)")

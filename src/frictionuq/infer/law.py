@@ -272,7 +272,23 @@ def fit_law(fit_dir, family: str = "auto", seed: int = 1, compare: bool = True, 
            "units": "applied in SI (N or Pa); parameters in SI; level_mean/sd in log space when "
                     "log_space", "laws": laws}
     atomic.write_json(Path(fit_dir) / LAW_FILE, doc)
+    # the summary names the law now in the folder (after `law --family X` too)
+    summary["law"] = law_entry(fit_dir)
+    from .fit import jsonable
+    atomic.write_json(Path(fit_dir) / "summary.json", jsonable(summary))
     return doc
+
+
+def law_entry(fit_dir) -> dict | None:
+    """{"file", "family", "sha256"} of the folder's law.json (None without one): what a
+    prediction or a mechanical-advantage table drawn from the law records, so that results of
+    two laws refitted into one folder can be told apart."""
+    from ..campaign import sha256_file
+    p = Path(fit_dir) / LAW_FILE
+    if not p.is_file():
+        return None
+    doc = load_law(fit_dir)
+    return {"file": LAW_FILE, "family": doc.get("family"), "sha256": sha256_file(p)}
 
 
 def load_law(fit_dir) -> dict:

@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import model as M
+from ..errors import InputError
 from ..noise import chatter_gain, default_eps, since_reversal
 from . import drivefilter, noisemodel
 from .offsetnoise import log_marginal_offset
@@ -185,8 +186,13 @@ def records_from_tests(tests, **kw) -> list[FitRecord]:
     out = []
     for te in tests:
         r = te.record
-        out.append(prepare_record(te.id, r.t, r.x, r.force, r.applied, frequency_hz=te.frequency_hz,
-                                  applied_level=te.applied, kind=te.kind, **kw))
+        try:
+            out.append(prepare_record(te.id, r.t, r.x, r.force, r.applied, frequency_hz=te.frequency_hz,
+                                      applied_level=te.applied, kind=te.kind, **kw))
+        except ValueError as e:    # a record too short for its noise estimate: name the test
+            if "samples" not in str(e):
+                raise
+            raise InputError(f"test {te.id}: {e}") from None
     return out
 
 

@@ -50,9 +50,12 @@ def validation(ctx, vdir: Path) -> list[dict]:
                   "included) and scored against the measured force. A calibrated band covers "
                   "about 95 % (50 %) of the samples; far less means overconfident."),
            B.html(table(cols, rows, row_classes=classes, caption="validation scores"))]
+    from ...extrapolation import notes
     for s in tests:
         for line in calibration_notes(s):
             out.append(B.warn(f"{s['test']}: {line[0].upper()}{line[1:]}."))
+        for line in notes(s):          # (validation.json of 2026-12-05 on: the ranges recorded)
+            out.append(B.note(f"{s['test']}: {line[0].upper()}{line[1:]}."))
     fitted = [s["test"] for s in tests if not s.get("held_out")]
     if fitted:
         out.append(B.warn(f"Not held out (the fit saw them): {', '.join(fitted)}."))
