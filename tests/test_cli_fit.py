@@ -287,3 +287,16 @@ def test_records_that_cannot_be_fitted_are_named(tmp_path, capsys):
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and fragment in err, err
     assert "none in test(s) z" in err and not (tmp_path / "o" / "summary.json").exists()
+
+
+def test_fit_notes_priors_of_parameters_its_model_does_not_have(tmp_path, monkeypatch, capsys):
+    """--prior k2=... with --model lugre (no backlash), or b_ch without chatter, is not applied
+    (build_space), and fit says so instead of ignoring it silently (a new user's trial)."""
+    from frictionuq.infer.fit import FitConfig, unused_parameters
+    assert unused_parameters(FitConfig(model="lugre"), ["k2", "fc_fwd", "b_ch"]) == ["k2", "b_ch"]
+    assert unused_parameters(FitConfig(effects=("chatter",)), ["k2", "b_ch"]) == []
+    _configs_seen(monkeypatch, "frictionuq.infer.fit.fit_campaign",
+                  ["fit", TWIN, "--out", str(tmp_path / "o"), "--model", "lugre", "--prior", "k2=2e5",
+                   "--prior", "fc_fwd=uniform:1:1e5"])
+    assert ("note: --prior k2: not a parameter of the lugre model: ignored"
+            in capsys.readouterr().err)

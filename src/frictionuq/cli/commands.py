@@ -32,6 +32,12 @@ def _cmd_fit(a):
                     kinds=tuple(a.kind) if a.kind else None, simulate_at=a.simulate_at,
                     drive_lowpass=a.drive_lowpass, reversal=a.reversal,
                     force_offset=a.force_offset)
+    from ..infer.fit import unused_parameters
+    unused = unused_parameters(cfg, cfg.priors)
+    if unused:
+        print(f"note: --prior {', '.join(unused)}: not a parameter of the {cfg.model} model"
+              + (f" with {', '.join(cfg.effects)}" if cfg.effects else "") + ": ignored",
+              file=sys.stderr)
     s = fit_campaign(a.campaign, a.out, by=a.by, config=cfg, log=lambda m: print(m, file=sys.stderr),
                      jobs=a.jobs)
     bad = [f["id"] for f in s["fits"] if not f["converged"]]

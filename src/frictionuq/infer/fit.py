@@ -137,6 +137,14 @@ def _check_noise_overrides(overrides: dict, where: str) -> None:
                          "(lower, upper) of the innovation sd, which is integrated out")
 
 
+def unused_parameters(config: FitConfig, names) -> list[str]:
+    """Those of `names` the fit's model does not have: an effect's parameters without the effect,
+    the backlash's with the LuGre model (their overrides do not apply; build_space)."""
+    return [n for n in names
+            if P.PARAMS[n].effect is not None and P.PARAMS[n].effect not in config.effects
+            or config.model == "lugre" and n in P.LUGRE_UNUSED]
+
+
 def build_space(spec: FitSpec, scales) -> Space:
     """The fit's sampling space: default priors, then the config's overrides. An override of an
     effect's parameter applies only when that effect is in the model (a workflow's priors serve
@@ -147,14 +155,9 @@ def build_space(spec: FitSpec, scales) -> Space:
     _check_noise_overrides(dict(c.priors or {}), f"fit {spec.id} priors")
     pri = default_priors(scales, c.model, c.effects, c.likelihood)
     pri, fixed = apply_overrides(pri, c.priors, source=f"fit {spec.id} priors")
-    off = {n for n in list(pri) + list(fixed)
-           if P.PARAMS[n].effect is not None and P.PARAMS[n].effect not in c.effects}
+    off = set(unused_parameters(c, list(pri) + list(fixed)))
     pri = {n: p for n, p in pri.items() if n not in off}
     fixed = {n: v for n, v in fixed.items() if n not in off}
-    if c.model == "lugre":          # no backlash: its parameters' overrides do not apply
-        for n in ("k2", "d2", "k3", "d3", "w"):
-            pri.pop(n, None)
-            fixed.pop(n, None)
     box = None
     if c.force_offset == "per_test":      # each test's zero integrated out (per_test_offset_box)
         pri.pop("force_offset")
