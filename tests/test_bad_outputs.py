@@ -62,6 +62,8 @@ def _one_line(capsys, code, fragment):
     ["validate", "{root}/fit", "{camp}", "--test", "h-35N-0.05Hz", "--out", "{out}"],
     ["advantage", "{root}/fit", "--out", "{out}"],
     ["fit", "{camp}", "--out", "{out}", "--max-steps", "5"],
+    # compare checked its --out only after every fit had run (a new user's trial, 2026-12-05)
+    ["compare", "{camp}", "--out", "{out}", "--max-steps", "5"],
 ])
 def test_an_output_under_a_file_is_one_line(work, capsys, argv):
     """--out below an existing file (e.g. /dev/null/x): before, an OSError's traceback or a
@@ -82,6 +84,13 @@ def test_twin_and_validate_do_not_replace_a_folder_of_the_users(work, tmp_path, 
     _one_line(capsys, main(["twin", "brfd", "--out", str(work / "afile")]), "exists and is not a folder")
     assert [p.name for p in mine.iterdir()] == ["thesis.txt"]
     assert (work / "afile").read_text() == "mine\n"
+    # an earlier twin is replaced, but not once the user has added a file to it (it was lost)
+    twin = tmp_path / "twin"
+    assert main(["twin", "mfd", "--out", str(twin)]) == 0
+    assert main(["twin", "mfd", "--out", str(twin), "--seed", "3"]) == 0
+    (twin / "tests" / "extra.csv").write_text("mine")
+    _one_line(capsys, main(["twin", "mfd", "--out", str(twin)]), "is not a twin campaign")
+    assert (twin / "tests" / "extra.csv").read_text() == "mine"
 
 
 def test_validate_writes_nothing_when_a_later_test_fails(work, tmp_path, capsys):
@@ -262,3 +271,18 @@ def test_a_folder_that_cannot_be_moved_aside_keeps_the_old_output_and_leaves_no_
             (tmp / "new.json").write_text("new")
     assert [p.name for p in tmp_path.iterdir()] == ["out"]
     assert [p.name for p in out.iterdir()] == ["old.json"]
+
+
+def test_compare_refuses_a_file_or_the_campaign_as_out_before_any_fit(work, capsys):
+    from frictionuq.infer import compare as C
+    calls = []
+    real = C.compare_level
+    C.compare_level = lambda *a, **k: calls.append(1) or real(*a, **k)
+    try:
+        _one_line(capsys, main(["compare", str(work / "camp"), "--out", str(work / "afile"),
+                                "--max-steps", "5"]), "exists and is not a folder")
+        _one_line(capsys, main(["compare", str(work / "camp"), "--out", str(work / "camp"),
+                                "--max-steps", "5"]), "must differ from the campaign folder")
+    finally:
+        C.compare_level = real
+    assert calls == [] and (work / "afile").read_text() == "mine\n"

@@ -30,6 +30,10 @@ from frictionuq.infer.sampler import SamplerConfig
     (dict(priors={"sigma0": float("nan")}), "nan is not finite"),
     (dict(priors={"sigma00": 1.0}), "unknown parameter 'sigma00'"),
     (dict(tests=[]), "tests is empty"),
+    # a new user's trial (2026-12-05): each was taken, and a value nobody gave used
+    (dict(priors={"sigma0": {"dist": "normal", "mu": 1e5}}), "a normal prior needs both mu and sd"),
+    (dict(effects={"thermal_fade": {"kappa": 0.3}}), "effects takes names, got values too"),
+    (dict(sampler={"max_step": 3}), "sampler: unknown field 'max_step'"),
 ])
 def test_a_bad_field_is_refused_at_construction(kw, message):
     with pytest.raises(InputError, match=message) as e:

@@ -126,6 +126,22 @@ def test_bad_eps():
     for eps in (-1e-6, math.nan):
         with pytest.raises(ValueError, match="eps"):
             simulate(T, X, GOOD, eps=eps)
+    # "auto" (the fit's word) or a dict: said so, with where the estimate comes from (a raw
+    # "could not convert string to float" or TypeError before)
+    for eps in ("auto", {}):
+        with pytest.raises(ValueError, match=r"eps \(reversal dead-band\) must be a number of m >= 0.*default_eps"):
+            simulate(T, X, GOOD, eps=eps)
+
+
+def test_a_value_that_is_text_or_a_bool_is_refused_as_by_the_cli():
+    for bad in ("805", True):
+        msg = raises_naming("fc_fwd", {**GOOD, "fc_fwd": bad})
+        assert f"expected a number, got {bad!r}" in msg
+
+
+def test_an_effect_given_a_number_instead_of_its_parameters():
+    msg = raises_naming("thermal_fade", GOOD, {"thermal_fade": 0.2})
+    assert "must be a mapping {parameter: value} (its parameters: kappa, e_fade), got 0.2" in msg
 
 
 @pytest.mark.parametrize("name,value", [("sigma0", -1.0), ("w", math.nan), ("kappa", 1.5),

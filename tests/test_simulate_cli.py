@@ -95,3 +95,15 @@ def test_bad_json(files, capsys):
     P.write_text("{not json")
     assert main(["simulate", "--params", str(P), "--input", str(X), "--out", str(F)]) == 2
     assert "not valid JSON" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("out", ["X.csv", "P.json", "P"])
+def test_out_that_would_replace_an_input_is_refused(files, capsys, out):
+    """--out (or its .json sidecar) naming --input or --params replaced the user's file (a new
+    user's trial, 2026-12-05); refused, both inputs untouched."""
+    t, x, a, X, P, F = files
+    before = X.read_bytes(), P.read_bytes()
+    assert main(["simulate", "--params", str(P), "--input", str(X), "--out", str(F.parent / out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "would replace an input file" in err, err
+    assert (X.read_bytes(), P.read_bytes()) == before

@@ -87,7 +87,11 @@ def _model_code(model: str) -> int:
 
 
 def _check_eps(eps) -> float:
-    e = float(eps)
+    try:
+        e = float(eps)
+    except (TypeError, ValueError):     # e.g. "auto": the record's estimator is noise.default_eps
+        raise ValueError(f"eps (reversal dead-band) must be a number of m >= 0, got {eps!r} "
+                         "(frictionuq.noise.default_eps(x) estimates one from a record)") from None
     if not (np.isfinite(e) and e >= 0):
         raise ValueError(f"eps (reversal dead-band) must be finite and >= 0 m, got {eps!r}")
     return e

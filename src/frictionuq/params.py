@@ -163,6 +163,8 @@ def check_value(name: str, value) -> float:
     """Validate one named value against its bounds; return it as float."""
     if name not in PARAMS:
         raise ValueError(f"unknown parameter {name!r}; known: {', '.join(PARAMS)}")
+    if isinstance(value, (str, bytes, bool)):   # float("805") and float(True) would pass: the CLI's
+        raise ValueError(f"parameter {name!r}: expected a number, got {value!r}")   # JSON refuses them
     try:
         v = float(value)
     except (TypeError, ValueError):
@@ -200,6 +202,9 @@ def check_effects(effects: Mapping[str, Mapping[str, float]] | None, model: str 
             raise ValueError(f"unknown effect {eff!r}; known: {', '.join(EFFECTS)}")
         if model != "three_stage" and eff in NEEDS_BACKLASH:
             raise ValueError(f"effect {eff!r} changes the backlash line and needs model 'three_stage'")
+        if values is not None and not isinstance(values, Mapping):
+            raise ValueError(f"effect {eff!r}: its parameters must be a mapping {{parameter: "
+                             f"value}} (its parameters: {', '.join(EFFECTS[eff])}), got {values!r}")
         values = dict(values or {})
         for name in values:
             if name not in EFFECTS[eff]:

@@ -64,9 +64,13 @@ def simulate_files(params_path, input_path, out_path, model: str = "three_stage"
     import math
     if not (math.isfinite(float(eps)) and float(eps) >= 0):
         raise InputError(f"eps {eps!r}: the reversal dead-band must be finite and >= 0 m")
+    inputs = {Path(params_path).resolve(), Path(input_path).resolve()}
     for o in (Path(out_path), Path(f"{out_path}.json")):     # refused before anything is written
         if o.is_dir():
             raise InputError(f"cannot write the file {o}: it is a folder")
+        if o.resolve() in inputs:       # the output (or its sidecar) would replace an input
+            raise InputError(f"--out {out_path}: writing {o} would replace an input file "
+                             "(--params or --input); choose another name")
     try:
         F = simulate(cols["time"], cols["displacement"], params, effects=effects, model=model,
                      eps=eps, applied=cols.get("applied"))

@@ -307,13 +307,18 @@ The force does not follow the `applied` signal (no applied_tracking effect in th
 
 def _is_twin(folder: Path) -> bool:
     """Whether `folder` holds a campaign this module wrote (its campaign.toml has a [twin] table
-    naming this generator)."""
+    naming this generator) and nothing else: a file the user added (notes, another test) would be
+    lost with the folder, so such a folder is not replaced."""
     import tomllib
     try:
         doc = tomllib.loads((folder / "campaign.toml").read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
         return False
-    return isinstance(doc.get("twin"), dict) and doc["twin"].get("generator") == "frictionuq.twins"
+    if not (isinstance(doc.get("twin"), dict) and doc["twin"].get("generator") == "frictionuq.twins"):
+        return False
+    own = {"campaign.toml", "README.md"} | {str(t.get("file")) for t in doc.get("tests") or []
+                                            if isinstance(t, dict)}
+    return all(p.relative_to(folder).as_posix() in own for p in folder.rglob("*") if p.is_file())
 
 
 def write_twin(device: str, out_dir, seed: int = DEFAULT_SEED, root=None) -> dict:

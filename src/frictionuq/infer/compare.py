@@ -276,6 +276,13 @@ def compare_campaign(campaign_path, out_dir, configs: dict[str, FitConfig] | Non
         raise InputError(f"compare: offset must be one of {OFFSET_MODES}, got {offset!r}")
     seed = check_seed(next(iter(configs.values())).seed if seed is None else seed, "compare")
     camp = load_campaign(campaign_path)
+    # where the results go, checked before any fit: not the campaign folder, not under a file
+    if Path(out_dir).resolve() == Path(camp.path).resolve():
+        raise InputError(f"--out {out_dir}: must differ from the campaign folder (the results "
+                         "would be written among its records)")
+    if Path(out_dir).exists() and not Path(out_dir).is_dir():
+        raise InputError(f"--out {out_dir}: exists and is not a folder")
+    atomic.writable_parent(Path(out_dir) / "compare.json", create=False)
     kinds = ((kinds,) if isinstance(kinds, str) else tuple(kinds)) if kinds else None
     tests = ((tests,) if isinstance(tests, str) else tuple(tests)) if tests else None
     if tests:

@@ -26,6 +26,10 @@ def _names(value, what: str) -> tuple[str, ...] | None:
         return None
     if isinstance(value, str):
         return (value,)
+    if isinstance(value, dict) and any(v not in (None, {}) for v in value.values()):
+        # simulate's {effect: {param: value}} form: its values would be dropped silently
+        raise InputError(f"fit config: {what} takes names, got values too ({value!r}); fix an "
+                         "effect's parameter with priors={NAME: VALUE}")
     try:
         out = tuple(value)
     except TypeError:
@@ -136,6 +140,12 @@ class FitConfig:
                 raise InputError(f"fit config: eps must be 'auto' or a dead band in m >= 0, got "
                                  f"{self.eps!r}")
         if isinstance(self.sampler, dict):
+            import dataclasses
+            known = {f.name for f in dataclasses.fields(SamplerConfig)}
+            bad = sorted(set(self.sampler) - known)
+            if bad:
+                raise InputError(f"fit config: sampler: unknown field {bad[0]!r}; fields: "
+                                 f"{', '.join(sorted(known))}")
             self.sampler = SamplerConfig(**self.sampler)
         elif not isinstance(self.sampler, SamplerConfig):
             raise InputError(f"fit config: sampler must be a SamplerConfig (or a dict of its "

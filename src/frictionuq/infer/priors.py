@@ -221,6 +221,12 @@ def apply_overrides(priors: Mapping[str, Prior], overrides: Mapping | None, sour
                              f"{base.upper:g}]); an override must give both lower and upper "
                              f"({P.PARAMS[name].unit})")
         # an override gives absolute bounds (SI), even where the default is relative
+        if spec.get("dist", base.dist) == "normal" and base.dist != "normal" and \
+                not {"mu", "sd"} <= set(spec):
+            # the Prior's own defaults (mu 0, sd 1) are no one's choice: a normal prior on a
+            # stiffness of 1e5 N/m with sd 1 N/m fixes it (a new user's trial, 2026-12-05)
+            raise InputError(f"{source}: prior of {name!r}: a normal prior needs both mu and sd "
+                             f"({P.PARAMS[name].unit})")
         new = replace(base, ratio_of=None, **{k: (float(v) if k != "dist" else v) for k, v in spec.items()})
         if new.dist not in DISTS:
             raise InputError(f"{source}: prior of {name!r}: unknown dist {new.dist!r}; use one of {DISTS}")
