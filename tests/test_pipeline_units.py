@@ -194,6 +194,11 @@ def test_a_bad_scheduler_address_or_record_file_is_one_line_of_input_error(tmp_p
     from frictionuq.pipeline.runner import _Pool
     with pytest.raises(InputError, match="--scheduler nonsense: cannot connect to a Dask scheduler"):
         _Pool(2, "nonsense")
+    # and the failed client leaves dask's configuration as it was (it became the process's
+    # scheduler, and the next files' xarray/ArviZ calls on this xdist worker tried 'nonsense')
+    import dask
+    from distributed.client import _get_global_client
+    assert dask.config.get("scheduler", None) is None and _get_global_client() is None
     _keys(tmp_path)
     toml = tmp_path / "c" / "campaign.toml"
     toml.write_text(toml.read_text().replace("records/1Hz36lbtension1amplitude.json.gz",

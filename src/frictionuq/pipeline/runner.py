@@ -123,7 +123,10 @@ class _Pool:
         if scheduler:
             from dask.distributed import Client
             try:
-                self.client = Client(scheduler, timeout="20s")
+                # not the process's default client: one that failed to connect stayed set as
+                # dask's scheduler, and later dask computations in this process (xarray,
+                # ArviZ) tried that address
+                self.client = Client(scheduler, timeout="20s", set_as_default=False)
             except (OSError, ValueError, TypeError) as e:    # unreachable, or not an address
                 raise InputError(f"--scheduler {scheduler}: cannot connect to a Dask scheduler "
                                  f"there ({' '.join(str(e).split())})") from None
