@@ -35,19 +35,22 @@ ORDER = 4
 EPS_MULTIPLIER = 8.0
 
 
-def displacement_noise_sd(x) -> float:
-    """Robust estimate (m) of the standard deviation of the noise on displacement record x."""
+def displacement_noise_sd(x, where: str | None = None) -> float:
+    """Robust estimate (m) of the standard deviation of the noise on displacement record x.
+    where: what the record is ("test h1"), named in the error of a record too short for it."""
     x = np.asarray(x, dtype=float)
     if x.size < ORDER + 10:
-        raise ValueError(f"need at least {ORDER + 10} samples to estimate displacement noise, got {x.size}")
+        from .errors import InputError
+        raise InputError(f"{where + ': ' if where else ''}need at least {ORDER + 10} samples to "
+                         f"estimate displacement noise, got {x.size}")
     d = np.diff(x, ORDER)
     mad = np.median(np.abs(d - np.median(d)))
     return float(1.4826 * mad / sqrt(comb(2 * ORDER, ORDER)))
 
 
-def default_eps(x, multiplier: float = EPS_MULTIPLIER) -> float:
+def default_eps(x, multiplier: float = EPS_MULTIPLIER, where: str | None = None) -> float:
     """Default reversal dead-band (m) for a measured record: `multiplier` x the noise sd."""
-    return multiplier * displacement_noise_sd(x)
+    return multiplier * displacement_noise_sd(x, where)
 
 
 @njit(cache=True)

@@ -20,9 +20,9 @@ from .model import simulate
 from .noise import count_reversals, default_eps, displacement_noise_sd
 
 
-def _eps(arg, x) -> float:
+def _eps(arg, x, where: str) -> float:
     if arg in (None, "auto"):
-        return default_eps(x)
+        return default_eps(x, where=where)
     try:
         e = float(arg)
     except (TypeError, ValueError):
@@ -46,10 +46,7 @@ def campaign_frame(path, published: str = "none", eps="auto") -> tuple[pd.DataFr
     rows = []
     for te in camp.tests:
         r = te.record
-        try:
-            e = _eps(eps, r.x)
-        except ValueError as err:        # too short a record for the noise estimate
-            raise InputError(f"test {te.id}: {err}") from None
+        e = _eps(eps, r.x, f"test {te.id}")
         row = {"test": te.id, f"applied ({unit})": U.from_si(te.applied, "applied", unit),
                "kind": te.kind, "freq (Hz)": te.frequency_hz if te.frequency_hz else np.nan,
                "samples": r.n, "rate (Hz)": r.rate_hz,

@@ -120,18 +120,15 @@ def validate(fit_dir, campaign_path, test_ids, out_dir, *, n_draws: int = 400, s
     atomic.check_replaceable(fit_dir, out, "validation.json", "fit", "a validation folder")
     results, behind = [], []
     with atomic.output_dir(out) as tmp:
+        unit = camp.units.get("applied", "N")
         for tid in test_ids:
             te = by_id[tid]
             r = te.record
-            try:
-                eps = default_eps(r.x)
-            except ValueError as e:      # too short a record for the noise estimate
-                raise InputError(f"test {tid}: {e}") from None
+            eps = default_eps(r.x, where=f"test {tid}")
             lowpass_mult = fit_drive_lowpass(summary, eps)   # filtered like the fit's records
             p = predict(fit_dir, te.applied, r.t, r.x, eps=eps, n_draws=n_draws, seed=seed,
                         include_offset=True, summary=summary, drive_lowpass=lowpass_mult)
             s = score(r.force, p.bands)
-            unit = camp.units.get("applied", "N")
             s.update(test=tid, applied_si=te.applied, kind=te.kind, eps_m=eps,
                      drive_lowpass=lowpass_mult,
                      held_out=tid not in fitted_tests, draws_source=p.draws.source,

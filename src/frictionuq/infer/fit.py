@@ -12,7 +12,6 @@ Layout of an output folder:
 """
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -353,10 +352,8 @@ def _check_fit_folder(out: Path, campaign_name: str) -> None:
                          f"{', ...' if len(foreign) > 3 else ''}, not a fit folder's; choose an "
                          "empty or new folder")
     s = out / "summary.json"
-    try:
-        other = json.loads(s.read_text()).get("campaign") if s.is_file() else None
-    except (OSError, ValueError, AttributeError):
-        raise InputError(f"{s}: not a readable fit summary; choose an empty or new --out") from None
+    from ..fitdir import read_json
+    other = read_json(s, "a fit summary").get("campaign") if s.is_file() else None
     if other is not None and other != campaign_name:
         raise InputError(f"--out {out}: holds fits of campaign {other!r}, not {campaign_name!r}; "
                          "choose an empty or new folder")

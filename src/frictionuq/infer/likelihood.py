@@ -37,7 +37,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import model as M
-from ..errors import InputError
 from ..noise import chatter_gain, default_eps, since_reversal
 from . import drivefilter, noisemodel
 from .offsetnoise import log_marginal_offset
@@ -144,7 +143,7 @@ def prepare_record(test_id, t, x, force, applied=None, *, q: int | str = "auto",
     t = np.asarray(t, float)
     x = np.asarray(x, float)
     force = np.asarray(force, float)
-    e = default_eps(x) if eps == "auto" else float(eps)
+    e = default_eps(x, where=f"test {test_id}") if eps == "auto" else float(eps)
     mult = drivefilter.resolve(drive_lowpass, e)
     if q == "auto":
         q = decimation_factor(t, x, samples_per_cycle, frequency_hz, min_kept_hz)
@@ -186,13 +185,8 @@ def records_from_tests(tests, **kw) -> list[FitRecord]:
     out = []
     for te in tests:
         r = te.record
-        try:
-            out.append(prepare_record(te.id, r.t, r.x, r.force, r.applied, frequency_hz=te.frequency_hz,
-                                      applied_level=te.applied, kind=te.kind, **kw))
-        except ValueError as e:    # a record too short for its noise estimate: name the test
-            if "samples" not in str(e):
-                raise
-            raise InputError(f"test {te.id}: {e}") from None
+        out.append(prepare_record(te.id, r.t, r.x, r.force, r.applied, frequency_hz=te.frequency_hz,
+                                  applied_level=te.applied, kind=te.kind, **kw))
     return out
 
 
