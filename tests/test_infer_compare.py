@@ -239,6 +239,7 @@ def test_single_test_level_and_outputs(backlash):
         ("applied-133N", "three_stage"), ("applied-133N", "lugre"),
         ("applied-267N", "three_stage"), ("applied-267N", "lugre")]
     assert rows[1]["elpd_nats"] == "" and rows[3]["compared_to"] == "three_stage"
+    assert float(rows[0]["applied_N"]) == 133.0 and doc["units"]["applied"] == "N"
     table = format_table(result)
     assert "RMSE (N)" in table and "ELPD (nats)" in table and "cannot hold out" in table
     assert "dELPD three_stage - lugre" in table
@@ -314,3 +315,21 @@ def test_models_are_scored_on_the_same_records():
     assert [c.record_options()["min_kept_hz"] for c in both.values()] == [50.0, 50.0]
     plain = check_configs({"3-stage": FitConfig(), "lugre": FitConfig(model="lugre")})
     assert [c.record_options()["min_kept_hz"] for c in plain.values()] == [None, None]
+
+
+@pytest.mark.parametrize("unit", ["N", "Pa"])
+def test_compare_csv_names_the_applied_unit(tmp_path, unit):
+    """compare.csv's applied column carries its SI unit in its name (applied_N for a force,
+    applied_Pa for the MFD's pressure), and compare.json says the same; a unit that is neither is
+    refused."""
+    from frictionuq.infer.compare import write_compare
+    lv = {"id": "applied-1", "applied": 6.9e6, "n_tests": 1, "cross_validated": False, "pairs": [],
+          "models": {"three_stage": {"rmse": 10.0, "elpd": None, "se": None, "converged": True}}}
+    write_compare(tmp_path, "c", tmp_path, {"three_stage": FitConfig()}, [lv], seed=1,
+                  offset="marginal", applied_unit=unit)
+    rows = list(csv.DictReader(open(tmp_path / "compare.csv")))
+    assert float(rows[0][f"applied_{unit}"]) == 6.9e6 and "applied_si" not in rows[0]
+    assert json.loads((tmp_path / "compare.json").read_text())["units"]["applied"] == unit
+    with pytest.raises(ValueError, match="applied_unit must be 'N' or 'Pa'"):
+        write_compare(tmp_path / "x", "c", tmp_path, {"three_stage": FitConfig()}, [lv], seed=1,
+                      offset="marginal", applied_unit="psi")

@@ -122,6 +122,14 @@ def test_quality_flags_clipping_few_reversals_and_clean_records():
     q = quality(_test(1e3 * x + 1e-3 * rng.standard_normal(x.size),
                                        1e3 * np.sign(np.cos(2 * np.pi * t))))
     assert any("check the campaign's displacement unit" in s for s in q["flags"]), q["flags"]
+    # one corrupt sample of 1e300 N (or kN read as N on a big machine) is flagged, not fitted
+    # silently; 10 MN is the limit, a real damper's force (tens of kN) is not flagged
+    noisy = x + 1e-6 * rng.standard_normal(x.size)
+    bad = 1e3 * np.sign(np.cos(2 * np.pi * t))
+    bad[700] = 1e300
+    q = quality(_test(noisy, bad))
+    assert any("peak |force| 1e+300 N is above 1e+07 N" in s for s in q["flags"]), q["flags"]
+    assert quality(_test(noisy, 0.99e7 * np.sign(np.cos(2 * np.pi * t)) + np.sin(t)))["flags"] == []
 
 
 # ---------------------------------------------------------------- the rendered report

@@ -1,6 +1,6 @@
 """Data-quality figures and flags of a test's record: the displacement noise and dead band, the
-reversals seen against those a harmonic should give, clipping, a flat record, and a stroke no
-damper test has (a unit mix-up). Used by the `table` command and the report's campaign section."""
+reversals seen against those a harmonic should give, clipping, a flat record, and a stroke or a
+force no damper test has (a unit mix-up or a corrupt sample). Used by the `table` command and the report's campaign section."""
 from __future__ import annotations
 
 import numpy as np
@@ -28,6 +28,7 @@ def clipped(v) -> bool:
 
 
 STROKE_PLAUSIBLE_M = 1.0    # peak-to-peak displacement above this: probably a unit mix-up
+FORCE_PLAUSIBLE_N = 1e7     # |force| above this (10 MN): a unit mix-up or a corrupt sample
 
 
 def quality(test) -> dict:
@@ -55,6 +56,10 @@ def quality(test) -> dict:
     if stroke > STROKE_PLAUSIBLE_M:     # a damper test's stroke is centimetres: mm read as m?
         out["flags"].append(f"stroke {stroke:.3g} m is above {STROKE_PLAUSIBLE_M:g} m: check the "
                             "campaign's displacement unit")
+    peak = float(np.max(np.abs(f))) if f.size else 0.0
+    if peak > FORCE_PLAUSIBLE_N:        # the papers' dampers reach tens of kN
+        out["flags"].append(f"peak |force| {peak:.3g} N is above {FORCE_PLAUSIBLE_N:.0e} N: check the "
+                            "campaign's force unit, or a corrupt sample")
     if np.ptp(f) == 0 or stroke == 0:
         out["flags"].append("flat record (force or displacement constant)")
     else:

@@ -6,7 +6,9 @@ force ranges, the displacement-noise estimate and the reversal dead-band eps it 
 number of reversals seen with that eps; with --published, the RMSE and normalised RMSE of the
 published model at the published level nearest to the test's applied level (force offset
 removed: the mean residual is reported separately, since load cells of real records are not
-zeroed).
+zeroed). NRMSE is RMSE over the measured force's peak to peak, as `validate` and the report
+define it. A test whose applied level lies beyond extrapolation.BEYOND_FACTOR times the published
+levels (BRFD: from the nearest published level; MFD: outside the tested pressures) is flagged.
 """
 from __future__ import annotations
 
@@ -14,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from . import units as U
+from .extrapolation import BEYOND_FACTOR
 from .campaign import load_campaign
 from .errors import InputError
 from .model import simulate
@@ -34,7 +37,7 @@ def _eps(arg, x, where: str) -> float:
 
 def campaign_frame(path, published: str = "none", eps="auto") -> tuple[pd.DataFrame, object]:
     """The table as a DataFrame (column names carry units) and the campaign."""
-    from .published import published_params, BRFD_APPLIED_N
+    from .published import published_params, BRFD_APPLIED_N, MFD_PRESSURES_PSI
     camp = load_campaign(path)
     pub = (published or "none").lower()
     if pub not in ("none", "brfd", "mfd"):
@@ -43,7 +46,7 @@ def campaign_frame(path, published: str = "none", eps="auto") -> tuple[pd.DataFr
         raise InputError(f"--published {pub}: the campaign's applied unit {camp.units['applied']!r} "
                          f"does not fit that device (BRFD: a force, MFD: a pressure)")
     unit = camp.units["applied"]
-    rows = []
+    rows, far = [], []
     for te in camp.tests:
         r = te.record
         e = _eps(eps, r.x, f"test {te.id}")
@@ -59,18 +62,29 @@ def campaign_frame(path, published: str = "none", eps="auto") -> tuple[pd.DataFr
                 level = min(BRFD_APPLIED_N, key=lambda a: abs(a - te.applied))
                 p = published_params("brfd", level)
                 row["published at (N)"] = level
+                if not level / BEYOND_FACTOR <= te.applied <= level * BEYOND_FACTOR:
+                    far.append(f"{te.id}: applied {te.applied:.4g} N, the nearest published level "
+                               f"is {level:g} N")
             else:
                 p = published_params("mfd", te.applied)
-                row["published at (psi)"] = U.from_si(te.applied, "applied", "psi")
+                psi = U.from_si(te.applied, "applied", "psi")
+                row["published at (psi)"] = psi
+                lo, hi = min(MFD_PRESSURES_PSI), max(MFD_PRESSURES_PSI)
+                if not lo / BEYOND_FACTOR <= psi <= hi * BEYOND_FACTOR:
+                    far.append(f"{te.id}: applied {psi:.4g} psi, the paper's law is from "
+                               f"{lo:g}-{hi:g} psi")
             F = simulate(r.t, r.x, p, eps=e)
             res = r.force - F
             off = float(np.mean(res))
             rmse = float(np.sqrt(np.mean((res - off) ** 2)))
             row["mean resid (kN)"] = off / 1e3
             row["RMSE (kN)"] = rmse / 1e3
-            row["NRMSE (%)"] = 100 * rmse / float(np.std(r.force))
+            ptp = float(np.ptp(r.force))
+            row["NRMSE (% of p-p)"] = 100 * rmse / ptp if ptp > 0 else np.nan
         rows.append(row)
-    return pd.DataFrame(rows), camp
+    df = pd.DataFrame(rows)
+    df.attrs["far_from_published"] = far
+    return df, camp
 
 
 def campaign_table(path, published: str = "none", eps="auto") -> str:
@@ -82,9 +96,12 @@ def campaign_table(path, published: str = "none", eps="auto") -> str:
     note = ""
     if published and published != "none":
         note = ("\nRMSE/NRMSE: published model at the nearest published level, after removing the mean "
-                "residual (force offset); NRMSE = RMSE / std of the measured force. The published "
-                "parameters are the paper's own prototype tests; calibrating them to these records "
-                "is the next stage (Bayesian calibration).")
+                "residual (force offset); NRMSE = RMSE / peak-to-peak of the measured force. The "
+                "published parameters are the paper's own prototype tests; calibrating them to these "
+                "records is the next stage (Bayesian calibration).")
+        for f in df.attrs["far_from_published"]:
+            note += (f"\nflags: {f}: beyond {BEYOND_FACTOR:g} x the published levels, the published "
+                     "model is extrapolated")
     from .quality import quality
     flags = [f"flags: {te.id}: {'; '.join(q['flags'])}" for te in camp.tests
              if (q := quality(te))["flags"]]

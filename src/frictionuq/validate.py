@@ -148,7 +148,7 @@ def validate(fit_dir, campaign_path, test_ids, out_dir, *, n_draws: int = 400, s
                "fit_dir": str(Path(fit_dir).resolve()), "campaign": camp.name,
                "campaign_path": str(Path(campaign_path).resolve()), "seed": seed, "n_draws": n_draws,
                "not_converged_fits": not_converged(summary, behind),
-               "units": "force N, applied_si N or Pa, eps m; coverage fractions of samples; nrmse = rmse / "
+               "units": f"force N, applied_si {camp.applied_si_unit}, eps m; coverage fractions of samples; nrmse = rmse / "
                         "peak-to-peak measured force",
                "tests": results}
         atomic.write_json(tmp / "validation.json", doc)

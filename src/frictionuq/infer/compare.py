@@ -232,16 +232,17 @@ def default_configs(likelihood: str = "ar1", seed: int = 1, sampler=None) -> dic
     return {m: FitConfig(model=m, **kw) for m in DEFAULT_MODELS}
 
 
-#: compare.csv: one row per level and model; delta_elpd_nats = ELPD(model) - ELPD(compared_to),
-#: the first model of the configuration, with the SE of the paired differences
-CSV_COLUMNS = ("level", "applied_si", "model", "n_tests", "rmse_N", "elpd_nats", "elpd_se_nats",
+#: compare.csv: one row per level and model; applied_N (applied_Pa for a pressure): the level's
+#: applied force in SI; delta_elpd_nats = ELPD(model) - ELPD(compared_to), the first model of the
+#: configuration, with the SE of the paired differences
+CSV_COLUMNS = ("level", "applied_{unit}", "model", "n_tests", "rmse_N", "elpd_nats", "elpd_se_nats",
                "compared_to", "delta_elpd_nats", "delta_se_nats", "converged")
 
 
-def _csv(levels) -> str:
+def _csv(levels, applied_unit: str) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(CSV_COLUMNS)
+    w.writerow([c.format(unit=applied_unit) for c in CSV_COLUMNS])
 
     def f(v):
         return "" if v is None else f"{v:.10g}"
@@ -304,12 +305,15 @@ def compare_campaign(campaign_path, out_dir, configs: dict[str, FitConfig] | Non
             lv["id"] = spec.id
             levels.append(lv)
     return write_compare(out_dir, camp.name, campaign_path, configs, levels, seed=seed,
-                         offset=offset, kinds=kinds, tests=tests)
+                         offset=offset, kinds=kinds, tests=tests, applied_unit=camp.applied_si_unit)
 
 
 def write_compare(out_dir, campaign: str, campaign_path, configs: dict, levels: list[dict], *,
-                  seed: int, offset: str, kinds=None, tests=None) -> dict:
-    """Write out_dir/compare.json and compare.csv (atomically) for compared levels."""
+                  seed: int, offset: str, kinds=None, tests=None, applied_unit: str) -> dict:
+    """Write out_dir/compare.json and compare.csv (atomically) for compared levels; applied_unit:
+    the SI unit of the levels' applied force, "N" or "Pa" (Campaign.applied_si_unit)."""
+    if applied_unit not in ("N", "Pa"):
+        raise ValueError(f"write_compare: applied_unit must be 'N' or 'Pa', got {applied_unit!r}")
     from .. import __version__
     result = {"package_version": __version__, "environment": environment(), "campaign": campaign,
               "campaign_path": str(Path(campaign_path).resolve()), "seed": seed, "offset": offset,
@@ -317,14 +321,14 @@ def write_compare(out_dir, campaign: str, campaign_path, configs: dict, levels: 
                          "kinds": list(kinds) if kinds else None,
                          "tests": list(tests) if tests else None},
               "units": {"rmse": "N", "elpd": "nats (natural-log predictive density of a whole "
-                                           "held-out test)", "applied_si": "N (or Pa)"},
+                                           "held-out test)", "applied": applied_unit},
               "method": "leave-one-test-out refits per applied-force level; SE = sqrt(K var_k), "
                         "var with divisor K-1 (Vehtari, Gelman & Gabry 2017); see "
                         "frictionuq.infer.compare",
               "levels": levels}
     out_dir = Path(out_dir)
     atomic.write_json(out_dir / "compare.json", jsonable(result))
-    atomic.write_text(out_dir / "compare.csv", _csv(levels))
+    atomic.write_text(out_dir / "compare.csv", _csv(levels, applied_unit))
     return result
 
 

@@ -182,7 +182,7 @@ def _compare_summary(wf, task, log):
         levels.append(merge_levels(parts))
     configs = {m: wf.fit_config(compare_model=m) for m in models}
     write_compare(Path(wf.out) / "compare", camp.name, Path(wf.out) / "ingest", configs, levels,
-                  seed=wf.seed, offset="marginal")
+                  seed=wf.seed, offset="marginal", applied_unit=camp.applied_si_unit)
     log(f"comparison of {', '.join(models)} at {len(levels)} level(s) written")
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from ... import noise
-from ...quality import EPS_STROKE_MAX, FEW_REVERSALS, STROKE_PLAUSIBLE_M, quality
+from ...quality import EPS_STROKE_MAX, FEW_REVERSALS, FORCE_PLAUSIBLE_N, STROKE_PLAUSIBLE_M, quality
 from .. import blocks as B
 from ..tables import DASH, nowrap, num, table
 
@@ -47,7 +47,8 @@ def build(ctx) -> list[dict]:
         f"with that eps. Flags: eps above {EPS_STROKE_MAX:.0%} of the stroke, a long run of "
         "samples at the record's extreme (clipping), a constant record, fewer than "
         f"{FEW_REVERSALS} reversals or under half of the 2 per cycle a harmonic test should give, "
-        f"a stroke above {STROKE_PLAUSIBLE_M:g} m (a displacement unit mix-up)."))
+        f"a stroke above {STROKE_PLAUSIBLE_M:g} m (a displacement unit mix-up), a force above "
+        f"{FORCE_PLAUSIBLE_N:.0e} N (a force unit mix-up or a corrupt sample)."))
     if n_flagged:
         blocks.append(B.warn(f"{n_flagged} of {len(camp.tests)} tests carry data-quality flags "
                              "(highlighted rows)."))
