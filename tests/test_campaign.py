@@ -314,3 +314,69 @@ def test_table_flags_a_stroke_no_damper_test_has(tmp_path, capsys):
     assert "flags: h1:" in out and "check the campaign's displacement unit" in out
     code, out, _ = run_cli(["table", str(make_campaign(tmp_path / "ok"))], capsys)
     assert code == 0 and "displacement unit" not in out
+
+
+# ------------------------------------------------------------------ a Campaign built in memory
+
+def _hand_built(**record):
+    from frictionuq.campaign import Campaign, Record, Test
+    t = np.arange(400) / 100.0
+    arrays = {"t": t, "x": 0.01 * np.sin(np.pi * t), "force": 1e3 * np.cos(np.pi * t)}
+    arrays.update(record)
+    rec = None if record.get("t", 0) is None else Record(arrays["t"], arrays["x"], arrays["force"],
+                                                         arrays.get("applied"))
+    return Campaign(name="nb", path=Path("."), units={"time": "s", "displacement": "m",
+                                                      "force": "N", "applied": "N"},
+                    tests=[Test(id="a", file="a.csv", applied=100.0, kind="harmonic", record=rec)])
+
+
+def _with(**change):
+    t = np.arange(400) / 100.0
+    out = {}
+    for k, v in change.items():
+        out[k] = v(t) if callable(v) else v
+    return out
+
+
+@pytest.mark.parametrize("record,fragment", [
+    ({"force": lambda t: np.where(np.arange(t.size) == 5, np.nan, 1.0)},
+     "test 'a': record.force has 1 NaN or infinite sample(s), the first at index 5"),
+    ({"x": lambda t: np.zeros(t.size - 1)}, "test 'a': record.x has 399 samples, record.t has 400"),
+    ({"t": lambda t: np.where(np.arange(t.size) == 10, t[9], t)},
+     "record.t, index 10: time is not strictly increasing"),
+    ({"applied": lambda t: np.ones((t.size, 2))}, "record.applied must be 1-D, got shape (400, 2)"),
+    ({"x": lambda t: ["a"] * t.size}, "record.x is not an array of numbers"),
+    ({"t": None}, "test 'a': no record (expected a Record of SI arrays t, x, force), got nothing"),
+])
+def test_fit_campaign_checks_a_campaign_built_in_memory(tmp_path, record, fragment):
+    """fit_campaign given a Campaign object (a notebook's arrays, never read from files) checks
+    it as load_campaign checks files, before any work, and names the test, the array and the
+    first bad sample (before: a NaN force or a repeated time gave 'no sliding plateaus', arrays of
+    unequal length a numpy error from inside the prior builder, no record an AttributeError)."""
+    from frictionuq.errors import InputError
+    from frictionuq.infer.fit import fit_campaign
+    with pytest.raises(InputError, match=None) as e:
+        fit_campaign(_hand_built(**_with(**record)), tmp_path / "out")
+    assert str(e.value).startswith("campaign 'nb', test 'a'") and fragment in str(e.value)
+    assert not (tmp_path / "out").exists()
+
+
+def test_campaigns_loaded_from_files_pass_the_in_memory_check():
+    """Whatever load_campaign returns passes check_campaign (the two checks agree), and so does a
+    well-formed hand-built campaign; a negative applied force or a bad id is refused."""
+    from dataclasses import replace
+    from frictionuq.campaign import check_campaign
+    from frictionuq.errors import InputError
+    for name in ("brfd-twin", "mfd-twin", "brfd-arts-d2"):
+        check_campaign(fq.load_campaign(ROOT / "data" / name))
+    good = _hand_built()
+    check_campaign(good)
+    for change, fragment in (({"applied": -5.0}, "applied must be a finite number >= 0 (SI), got -5.0"),
+                             ({"id": "a b"}, "'a b' is not a valid test id"),
+                             ({"kind": "sine"}, "kind 'sine' is not one of harmonic")):
+        bad = replace(good, tests=[replace(good.tests[0], **change)])
+        with pytest.raises(InputError, match=None) as e:
+            check_campaign(bad)
+        assert fragment in str(e.value)
+    with pytest.raises(InputError, match="duplicated test id 'a'"):
+        check_campaign(replace(good, tests=good.tests * 2))

@@ -29,7 +29,7 @@ import numpy as np
 
 from . import units as U
 from .errors import InputError, not_a_file
-from .records import check_time, read_arts_json, read_csv
+from .records import MIN_SAMPLES, check_time, read_arts_json, read_csv
 
 KINDS = ("harmonic", "earthquake", "other")
 UNIT_KINDS = {"time": "time", "displacement": "displacement", "force": "force", "applied": "applied"}
@@ -107,6 +107,69 @@ class Campaign:
         return f"{U.from_si(value_si, 'applied', unit):g} {unit}"
 
 
+def check_campaign(camp: Campaign) -> None:
+    """Validate a Campaign built in memory (a notebook's arrays, not load_campaign's files) as
+    load_campaign validates files: unique valid ids, known kinds, applied >= 0, and per test a
+    record of 1-D numeric arrays of one length (at least MIN_SAMPLES), finite, with time strictly
+    increasing. Raises InputError naming the test, the array and the first bad sample."""
+    if not isinstance(camp, Campaign):
+        raise InputError(f"expected a Campaign (frictionuq.load_campaign), got {_type_name(camp)}")
+    w = f"campaign {camp.name!r}"
+    if not camp.tests:
+        raise InputError(f"{w}: no tests; a campaign needs at least one test")
+    try:
+        U.si_unit_of_applied(camp.units["applied"])
+    except (KeyError, TypeError, ValueError):
+        raise InputError(f"{w}: units must name the applied unit (units['applied'], e.g. 'N', 'lb' "
+                         f"or 'psi'); got {camp.units!r}") from None
+    seen = set()
+    for te in camp.tests:
+        if not isinstance(te, Test):
+            raise InputError(f"{w}: tests must be Test objects, got {_type_name(te)}")
+        if not (isinstance(te.id, str) and ID_PATTERN.match(te.id)):
+            raise InputError(f"{w}: {te.id!r} is not a valid test id (letters, digits and ._+- "
+                             "only, starting with a letter or digit)")
+        if te.id in seen:
+            raise InputError(f"{w}: duplicated test id {te.id!r}")
+        seen.add(te.id)
+        wt = f"{w}, test {te.id!r}"
+        try:
+            applied = float(te.applied)
+        except (TypeError, ValueError):
+            applied = float("nan")
+        if not (np.isfinite(applied) and applied >= 0):
+            raise InputError(f"{wt}: applied must be a finite number >= 0 (SI), got {te.applied!r}")
+        if te.kind not in KINDS:
+            raise InputError(f"{wt}: kind {te.kind!r} is not one of {', '.join(KINDS)}")
+        r = te.record
+        if not isinstance(r, Record):
+            raise InputError(f"{wt}: no record (expected a Record of SI arrays t, x, force), got "
+                             f"{_type_name(r)}")
+        n = None
+        for name in ("t", "x", "force", "applied"):
+            v = getattr(r, name)
+            if v is None and name == "applied":
+                continue
+            try:
+                a = np.asarray(v, dtype=float)
+            except (TypeError, ValueError):
+                raise InputError(f"{wt}: record.{name} is not an array of numbers") from None
+            if a.ndim != 1:
+                raise InputError(f"{wt}: record.{name} must be 1-D, got shape {a.shape}")
+            if n is None:
+                n = a.size
+                if n < MIN_SAMPLES:
+                    raise InputError(f"{wt}: {n} samples; a record needs at least {MIN_SAMPLES}")
+            elif a.size != n:
+                raise InputError(f"{wt}: record.{name} has {a.size} samples, record.t has {n}")
+            bad = np.flatnonzero(~np.isfinite(a))
+            if bad.size:
+                raise InputError(f"{wt}: record.{name} has {bad.size} NaN or infinite sample(s), the "
+                                 f"first at index {int(bad[0])}")
+            if name == "t":
+                check_time(wt, a, line_offset=0, what="record.t, index")
+
+
 def sha256_file(path) -> str:
     h = hashlib.sha256()
     with open(path, "rb") as f:
@@ -119,7 +182,7 @@ def sha256_file(path) -> str:
 
 def _type_name(v) -> str:
     return {str: "text", int: "a number", float: "a number", bool: "true/false",
-            list: "a list", dict: "a table"}.get(type(v), type(v).__name__)
+            list: "a list", dict: "a table", type(None): "nothing"}.get(type(v), type(v).__name__)
 
 
 def _get(where: str, table: dict, key: str, kind, required: bool = True):

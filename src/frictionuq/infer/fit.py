@@ -305,9 +305,12 @@ def fit_campaign(campaign_path, out_dir, by: str = "applied", config: FitConfig 
     from ..workers import Workers
     jobs = Workers(jobs).jobs               # refused here, before any work, if not an int >= 1
     atomic.writable_parent(Path(out_dir) / "summary.json", create=False)   # out: a folder, or none yet
-    from ..campaign import Campaign
-    camp = campaign_path if isinstance(campaign_path, Campaign) else load_campaign(campaign_path)
-    campaign_path = camp.path if isinstance(campaign_path, Campaign) else campaign_path
+    from ..campaign import Campaign, check_campaign
+    if isinstance(campaign_path, Campaign):     # built in memory: checked as files are on loading
+        check_campaign(campaign_path)
+        camp, campaign_path = campaign_path, campaign_path.path
+    else:
+        camp = load_campaign(campaign_path)
     if Path(out_dir).resolve() == Path(campaign_path).resolve():
         raise InputError(f"--out {out_dir}: must differ from the campaign folder (the fits would "
                          "be written among its records)")
