@@ -13,7 +13,7 @@ C = Checker(Path("w.toml"))
 
 @pytest.mark.parametrize("call, message", [
     (lambda: C.table({"fit": 3}, "fit"), "w.toml: [fit]: must be a table, got int"),
-    (lambda: C.unknown({"bye": 1}, {"by"}, "fit"), "w.toml: fit.bye: unknown key; allowed: by"),
+    (lambda: C.unknown({"bye": 1}, {"by"}, "fit"), "w.toml: fit.bye: unknown key 'bye' (did you mean 'by'?); known: by"),
     (lambda: C.str_({}, "name", "workflow", required=True), "w.toml: workflow.name: missing (required)"),
     (lambda: C.str_({"by": "x"}, "by", "fit", choices=("applied", "test")),
      "w.toml: fit.by: must be one of applied, test, got 'x'"),

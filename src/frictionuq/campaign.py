@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from . import units as U
-from .errors import InputError, not_a_file
+from .errors import InputError, not_a_file, unknown
 from .records import MIN_SAMPLES, check_time, read_arts_json, read_csv
 
 KINDS = ("harmonic", "earthquake", "other")
@@ -207,7 +207,7 @@ def _get(where: str, table: dict, key: str, kind, required: bool = True):
 def _unknown(where: str, table: dict, allowed, what: str) -> None:
     extra = sorted(set(table) - set(allowed))
     if extra:
-        raise InputError(f"{where}: unknown {what} {extra[0]!r}; allowed: {', '.join(sorted(allowed))}")
+        raise InputError(f"{where}: {unknown(what, extra[0], sorted(allowed))}")
 
 
 def read_toml(folder: Path) -> tuple[dict, Path]:

@@ -21,6 +21,18 @@ class ResultWarning(UserWarning):
     these (and ignores the warning); a notebook sees the warning."""
 
 
+def unknown(what: str, name, known) -> str:
+    """The one wording of an unknown name (a key, a field, a parameter, an effect, a unit):
+    "unknown key 'knd' (did you mean 'kind'?); known: id, file, kind". The closest known name is
+    suggested when it is close enough, ignoring case (difflib, ratio >= 0.6: 'kn' -> 'kN')."""
+    import difflib
+    names = [str(k) for k in known]
+    lower = {n.lower(): n for n in reversed(names)}        # the first of names equal but for case
+    close = difflib.get_close_matches(str(name).lower(), list(lower), n=1, cutoff=0.6)
+    hint = f" (did you mean {lower[close[0]]!r}?)" if close else ""
+    return f"unknown {what} {name!r}{hint}; known: {', '.join(names)}"
+
+
 def not_a_file(path) -> str | None:
     """Why `path` cannot be read as a file ("is a folder, not a file" or "file not found"), or
     None when it is one."""

@@ -53,7 +53,7 @@ from scipy.interpolate import CubicSpline
 
 from .accelerograms import (GroundMotion, read_at2, read_columns, read_record,  # noqa: F401
                             read_single_column)
-from .errors import InputError
+from .errors import InputError, unknown
 
 __all__ = ["GroundMotion", "read_at2", "read_single_column", "read_columns", "read_record",
            "baseline_correct", "integrate", "displacement_history", "resample", "RECORDS",
@@ -269,7 +269,7 @@ def load_record(key: str, root=None) -> GroundMotion:
     try:
         ref = RECORDS[key]
     except KeyError:
-        raise InputError(f"unknown ground motion {key!r}; known: {', '.join(RECORDS)}") from None
+        raise InputError(unknown("ground motion", key, RECORDS)) from None
     root = Path(root) if root is not None else ground_motions_dir()
     path = root / ref.folder / ref.file
     if not path.is_file():

@@ -17,6 +17,8 @@ from typing import Mapping
 
 import numpy as np
 
+from .errors import unknown
+
 
 @dataclass(frozen=True)
 class Param:
@@ -162,7 +164,7 @@ def neutral_vector() -> np.ndarray:
 def check_value(name: str, value) -> float:
     """Validate one named value against its bounds; return it as float."""
     if name not in PARAMS:
-        raise ValueError(f"unknown parameter {name!r}; known: {', '.join(PARAMS)}")
+        raise ValueError(unknown("parameter", name, PARAMS))
     if isinstance(value, (str, bytes, bool)):   # float("805") and float(True) would pass: the CLI's
         raise ValueError(f"parameter {name!r}: expected a number, got {value!r}")   # JSON refuses them
     try:
@@ -193,13 +195,13 @@ def check_effects(effects: Mapping[str, Mapping[str, float]] | None, model: str 
                   ) -> dict[str, dict[str, float]]:
     """Validate an effects mapping {effect: {param: value}}; missing parameters take defaults."""
     if model not in MODELS:
-        raise ValueError(f"unknown model {model!r}; use one of: {', '.join(MODELS)}")
+        raise ValueError(unknown("model", model, MODELS))
     out: dict[str, dict[str, float]] = {}
     effects = _mapping(effects or {}, "effects", "{effect: {parameter: value}}, e.g. "
                        "{'thermal_fade': {'kappa': 0.2, 'e_fade': 1e4}}")
     for eff, values in effects.items():
         if eff not in EFFECTS:
-            raise ValueError(f"unknown effect {eff!r}; known: {', '.join(EFFECTS)}")
+            raise ValueError(unknown("effect", eff, EFFECTS))
         if model != "three_stage" and eff in NEEDS_BACKLASH:
             raise ValueError(f"effect {eff!r} changes the backlash line and needs model 'three_stage'")
         if values is not None and not isinstance(values, Mapping):

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from .errors import InputError
+from .errors import InputError, unknown
 
 
 class Checker:
@@ -28,7 +28,7 @@ class Checker:
         extra = sorted(set(table) - set(allowed))
         if extra:
             self.fail(f"{where}.{extra[0]}" if where else extra[0],
-                      f"unknown key; allowed: {', '.join(sorted(allowed))}")
+                      unknown("key", extra[0], sorted(allowed)))
 
     def str_(self, t, key, where, default=None, choices=None, required=False):
         if key not in t:

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .errors import unknown
+
 # Exact definitions: 1 in = 0.0254 m (international inch, 1959); 1 lbf = 4.4482216152605 N
 # (avoirdupois pound x standard gravity 9.80665 m/s^2); 1 kip = 1000 lbf; 1 psi = 1 lbf/in^2.
 LBF = 4.4482216152605
@@ -41,12 +43,11 @@ def factor(kind: str, unit: str) -> float:
     try:
         table = UNITS[kind]
     except KeyError:
-        raise ValueError(f"unknown quantity kind {kind!r}; known: {', '.join(UNITS)}") from None
+        raise ValueError(unknown("quantity kind", kind, UNITS)) from None
     try:
         return table[unit]
     except (KeyError, TypeError):
-        raise ValueError(
-            f"unknown {kind} unit {unit!r}; use one of: {', '.join(table)}") from None
+        raise ValueError(unknown(f"{kind} unit", unit, table)) from None
 
 
 def to_si(value, kind: str, unit: str):

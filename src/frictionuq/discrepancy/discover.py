@@ -49,6 +49,7 @@ import numpy as np
 from .. import atomic
 from ..environment import environment
 from ..errors import InputError, check_seed
+from ..errors import unknown as unknown_name
 from ..infer.fit import FitConfig, FitSpec, jsonable, plan, run_fit
 from ..infer.likelihood import NOISE_EFFECT_MIN_KEPT_HZ
 from . import fits, rule, screen, seedcheck
@@ -191,7 +192,7 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
         extra_effects = (extra_effects,)
     unknown = [e for e in effects or () if e not in P.EFFECTS]
     if unknown:
-        raise InputError(f"discover: unknown effect {unknown[0]!r}; known: {', '.join(P.EFFECTS)}")
+        raise InputError(f"discover: {unknown_name('effect', unknown[0], P.EFFECTS)}")
     bad = [e for e in extra_effects if e not in P.BEYOND_SPEC]
     if bad:
         raise InputError(f"discover: extra effect {bad[0]!r} is not an effect beyond the spec's "

@@ -8,7 +8,7 @@ from numbers import Integral, Real
 import numpy as np
 
 from .. import params as P
-from ..errors import InputError, check_seed
+from ..errors import InputError, check_seed, unknown
 from . import drivefilter
 from .likelihood import NOISE_EFFECT_MIN_KEPT_HZ, SIMULATE_AT
 from .sampler import SamplerConfig
@@ -144,8 +144,7 @@ class FitConfig:
             known = {f.name for f in dataclasses.fields(SamplerConfig)}
             bad = sorted(set(self.sampler) - known)
             if bad:
-                raise InputError(f"fit config: sampler: unknown field {bad[0]!r}; fields: "
-                                 f"{', '.join(sorted(known))}")
+                raise InputError(f"fit config: sampler: {unknown('field', bad[0], sorted(known))}")
             self.sampler = SamplerConfig(**self.sampler)
         elif not isinstance(self.sampler, SamplerConfig):
             raise InputError(f"fit config: sampler must be a SamplerConfig (or a dict of its "

@@ -20,7 +20,7 @@ import numpy as np
 
 from .. import atomic, params as P
 from ..environment import environment
-from ..errors import InputError, check_seed
+from ..errors import InputError, check_seed, unknown
 from ..units import from_si
 from . import drivefilter
 from .likelihood import SIMULATE_AT, LogPosterior, records_from_tests
@@ -95,9 +95,9 @@ def plan(campaign, by: str = "applied", config: FitConfig | None = None) -> list
              if (config.kinds is None or t.kind in config.kinds)
              and (config.tests is None or t.id in config.tests)]
     # any unknown id is refused, not only when nothing matches: a typo would drop a test
-    unknown = [i for i in (config.tests or ()) if i not in {t.id for t in campaign.tests}]
-    if not tests or unknown:
-        what = (f"no test {', '.join(map(repr, unknown))}" if unknown else
+    missing = [i for i in (config.tests or ()) if i not in {t.id for t in campaign.tests}]
+    if not tests or missing:
+        what = (f"no test {', '.join(map(repr, missing))}" if missing else
                 f"no test of kind {', '.join(config.kinds or ())} among the tests selected")
         ids = [t.id for t in campaign.tests]
         listed = ", ".join(ids[:20]) + (f", ... ({len(ids)} in all)" if len(ids) > 20 else "")
@@ -181,7 +181,7 @@ def prepare(spec: FitSpec):
     c = spec.config
     for eff in c.effects:
         if eff not in P.EFFECTS:
-            raise InputError(f"unknown effect {eff!r}; known: {', '.join(P.EFFECTS)}")
+            raise InputError(unknown("effect", eff, P.EFFECTS))
         if eff in P.NEEDS_APPLIED:
             missing = [t.id for t in spec.tests if t.record.applied is None]
             if missing:

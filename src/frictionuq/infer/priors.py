@@ -30,7 +30,7 @@ from typing import Iterable, Mapping
 import numpy as np
 
 from .. import params as P
-from ..errors import InputError
+from ..errors import InputError, unknown
 
 DISTS = ("uniform", "loguniform", "normal")
 
@@ -156,7 +156,7 @@ def default_priors(s: RecordScales, model: str = "three_stage", effects: Iterabl
 def effect_priors(effect: str, s: RecordScales) -> dict[str, Prior]:
     """Realistic priors of one effect's parameters (registry: EFFECT_PRIORS)."""
     if effect not in EFFECT_PRIORS:
-        raise InputError(f"no priors defined for effect {effect!r}; known: {', '.join(EFFECT_PRIORS)}")
+        raise InputError(f"no priors: {unknown('effect', effect, EFFECT_PRIORS)}")
     return {p.name: p for p in EFFECT_PRIORS[effect](s)}
 
 
@@ -209,10 +209,10 @@ def apply_overrides(priors: Mapping[str, Prior], overrides: Mapping | None, sour
         if not isinstance(spec, Mapping):
             raise InputError(f"{source}: prior of {name!r} must be a number (fixed) or a table "
                              f"with dist/lower/upper, got {spec!r}")
-        unknown = set(spec) - {"dist", "lower", "upper", "mu", "sd"}
-        if unknown:
-            raise InputError(f"{source}: prior of {name!r} has unknown keys {sorted(unknown)}; "
-                             "allowed: dist, lower, upper, mu, sd")
+        extra = sorted(set(spec) - {"dist", "lower", "upper", "mu", "sd"})
+        if extra:
+            raise InputError(f"{source}: prior of {name!r}: "
+                             f"{unknown('key', extra[0], ('dist', 'lower', 'upper', 'mu', 'sd'))}")
         base = out.get(name) or Prior(name, "uniform", P.PARAMS[name].lower, P.PARAMS[name].upper)
         if base.ratio_of and not {"lower", "upper"} <= set(spec):
             # the default's bounds are of the ratio to ratio_of: kept, they would read as newtons
