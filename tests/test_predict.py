@@ -293,20 +293,20 @@ def test_refuses_incomplete_fit_folders_and_oversized_requests(fit_dir, tmp_path
 
 
 def test_an_input_beyond_the_fitted_records_is_flagged(fit_dir, tmp_path, capsys):
-    """prediction.json's fitted_range says when the input's stroke or peak speed exceeds the
+    """prediction.json's fitted_range says when the input's amplitude or peak speed exceeds the
     fitted records' by more than BEYOND_FACTOR, and the command line notes it; a harmonic inside
     the fitted range is not flagged."""
     from frictionuq.extrapolation import BEYOND_FACTOR
     inside = write_prediction(fit_dir, tmp_path / "in", harmonic=(AMP, FREQ), applied=0.267, n_draws=20)
     r = inside["fitted_range"]
-    assert r["beyond"] == [] and r["stroke_m"] == pytest.approx(AMP, rel=1e-3)
-    assert r["fitted_stroke_m"] >= AMP * 0.99 and r["factor"] == BEYOND_FACTOR
+    assert r["beyond"] == [] and r["amplitude_m"] == pytest.approx(AMP, rel=1e-3)
+    assert r["fitted_amplitude_m"] >= AMP * 0.99 and r["factor"] == BEYOND_FACTOR
     assert main(["predict", str(fit_dir), "--harmonic", f"{4 * AMP},{FREQ}", "--applied", "0.267",
                  "--out", str(tmp_path / "far"), "--draws", "20"]) == 0
     err = capsys.readouterr().err
-    assert "note: the input goes beyond the fitted records (stroke, peak speed)" in err, err
+    assert "note: the input goes beyond the fitted records (amplitude, peak speed)" in err, err
     doc = json.loads((tmp_path / "far" / "prediction.json").read_text())
-    assert doc["fitted_range"]["beyond"] == ["stroke", "peak speed"]
+    assert doc["fitted_range"]["beyond"] == ["amplitude", "peak speed"]
 
 
 def test_the_library_warns_where_the_cli_notes(fit_dir, tmp_path, capsys):
@@ -367,7 +367,7 @@ def test_a_level_typed_to_a_few_digits_is_that_level(fit_dir, tmp_path):
 
 
 def test_validate_says_where_it_extrapolates(fit_dir, tmp_path, capsys):
-    """validate scores a measured test whose stroke is three times the fitted records': like
+    """validate scores a measured test whose amplitude is three times the fitted records': like
     predict, it records the input's range (validation.json) and says it extrapolates (the CLI's
     note), which it did not until 2026-12-05."""
     from frictionuq.cli import main
@@ -379,5 +379,15 @@ def test_validate_says_where_it_extrapolates(fit_dir, tmp_path, capsys):
     err = capsys.readouterr().out
     doc = json.loads((tmp_path / "v" / "validation.json").read_text())
     r = doc["tests"][0]
-    assert r["fitted_range"]["beyond"] == ["stroke", "peak speed"] and not r["applied_range"]["beyond"]
-    assert "note: h1: the input goes beyond the fitted records (stroke, peak speed)" in err, err
+    assert r["fitted_range"]["beyond"] == ["amplitude", "peak speed"] and not r["applied_range"]["beyond"]
+    assert "note: h1: the input goes beyond the fitted records (amplitude, peak speed)" in err, err
+
+
+def test_a_record_written_before_the_amplitude_rename_still_gives_its_note():
+    """prediction.json and validation.json written before 2026-12-05 name the input's amplitude
+    stroke_m (the same figure); the report and the task log still read their note."""
+    from frictionuq.extrapolation import notes
+    old = {"fitted_range": {"stroke_m": 0.03, "fitted_stroke_m": 0.01, "peak_speed_m_s": 0.2,
+                            "fitted_peak_speed_m_s": 0.1, "beyond": ["stroke", "peak speed"]}}
+    (line,) = notes(old)
+    assert "amplitude (largest |x - median x|) 0.03 m against 0.01 m" in line

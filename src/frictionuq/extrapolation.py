@@ -1,4 +1,4 @@
-"""What a prediction rests on (predict.py): the input's stroke and peak speed and the applied
+"""What a prediction rests on (predict.py): the input's amplitude and peak speed and the applied
 force beside those of the fits its draws come from, and the warnings when they go beyond them
 or the fits did not converge. The bands then extrapolate the model (or the force-dependence
 law), which prediction.json (`fitted_range`, `applied_range`) and the command line say."""
@@ -11,14 +11,15 @@ import numpy as np
 from .fitdir import not_converged
 
 
-#: an input whose stroke or peak speed exceeds the fitted records' by more than this factor is
+#: an input whose amplitude or peak speed exceeds the fitted records' by more than this factor is
 #: flagged (prediction.json "fitted_range", and a note on the command line): the model's
 #: parameters, v_s and sigma2 above all, are then extrapolated beyond what the data showed
 BEYOND_FACTOR = 1.5
 
 
 def fitted_range(fit_dir, fit_ids, t, x) -> dict:
-    """The input's stroke (largest |x - median x|, m) and peak speed (m/s) beside the largest of
+    """The input's amplitude (largest |x - median x|, m: half the stroke of a centred sine) and
+    peak speed (m/s) beside the largest of
     the records of the fits its draws come from (fit.json's scales), and which of them go
     beyond BEYOND_FACTOR times those."""
     from .fitdir import read_json
@@ -27,11 +28,11 @@ def fitted_range(fit_dir, fit_ids, t, x) -> dict:
         sc = read_json(Path(fit_dir) / fid / "fit.json", f"record of fit {fid}").get("scales") or {}
         amp, vmax = max(amp, float(sc.get("amp", 0.0))), max(vmax, float(sc.get("v_max", 0.0)))
     x = np.asarray(x, float)
-    stroke = float(np.max(np.abs(x - np.median(x))))
+    amplitude = float(np.max(np.abs(x - np.median(x))))
     speed = float(np.max(np.abs(np.gradient(x, np.asarray(t, float))))) if x.size > 1 else 0.0
-    beyond = [name for name, v, ref in (("stroke", stroke, amp), ("peak speed", speed, vmax))
+    beyond = [name for name, v, ref in (("amplitude", amplitude, amp), ("peak speed", speed, vmax))
               if ref > 0 and v > BEYOND_FACTOR * ref]
-    return {"stroke_m": stroke, "fitted_stroke_m": amp, "peak_speed_m_s": speed,
+    return {"amplitude_m": amplitude, "fitted_amplitude_m": amp, "peak_speed_m_s": speed,
             "fitted_peak_speed_m_s": vmax, "beyond": beyond, "factor": BEYOND_FACTOR}
 
 
@@ -75,15 +76,17 @@ def warn_about(fit_dir, draws, summary, t, x, applied_si) -> tuple[dict, dict]:
 
 def notes(meta: dict) -> list[str]:
     """The sentences a prediction's record (prediction.json) calls for about where it
-    extrapolates: the input beyond the fitted records' stroke or speed, the applied force beyond
+    extrapolates: the input beyond the fitted records' amplitude or speed, the applied force beyond
     the fitted levels. The same words on the command line (`predict`), in a workflow's task log
     and console, and in the report."""
     from .units import from_si
     out = []
     r = meta.get("fitted_range") or {}
     if r.get("beyond"):
-        out.append(f"the input goes beyond the fitted records ({', '.join(r['beyond'])}): stroke "
-                   f"{r['stroke_m']:.4g} m against {r['fitted_stroke_m']:.4g} m, peak speed "
+        # amplitude_m was stroke_m before 2026-12-05 (the same figure): older records still read
+        a, fa = (r.get("amplitude_m", r.get("stroke_m")), r.get("fitted_amplitude_m", r.get("fitted_stroke_m")))
+        out.append(f"the input goes beyond the fitted records ({', '.join(r['beyond'])}): amplitude "
+                   f"(largest |x - median x|) {a:.4g} m against {fa:.4g} m, peak speed "
                    f"{r['peak_speed_m_s']:.4g} m/s against {r['fitted_peak_speed_m_s']:.4g} m/s; "
                    "the bands extrapolate the model there")
     ar, ap = meta.get("applied_range") or {}, meta.get("applied") or {}

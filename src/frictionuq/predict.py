@@ -214,7 +214,7 @@ def predict(fit_dir, applied_si: float, t, x, *, eps: float | str = 0.0, n_draws
     fit's setting for this input (fit_drive_lowpass: a clean drive at eps 0 is not filtered),
     a number sets the multiple, None or "off" runs on x itself; the bands keep the given x.
     Warns (errors.ResultWarning) when the draws come from fits that did not converge or the
-    input goes beyond extrapolation.BEYOND_FACTOR times the fitted stroke or peak speed."""
+    input goes beyond extrapolation.BEYOND_FACTOR times the fitted amplitude or peak speed."""
     check_draws(n_draws)
     check_seed(seed, "predict")
     if isinstance(eps, str) and eps != "auto":

@@ -121,7 +121,7 @@ def _cmd_predict(a):
     _note_not_converged(m["not_converged_fits"], "the bands are drawn")
     from ..extrapolation import notes
     for i, n in enumerate(notes(m)):
-        # the input CSV is in SI: a stroke far beyond the records may be millimetres as metres
+        # the input CSV is in SI: an amplitude far beyond the records may be millimetres as metres
         tail = (" (predict's input CSV is in SI: metres)"
                 if i == 0 and m["fitted_range"]["beyond"] and a.input else "")
         print(f"note: {n}{tail}", file=sys.stderr)
