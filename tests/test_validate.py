@@ -19,10 +19,14 @@ def _bands(median, sd):
     return pd.DataFrame(cols)
 
 
-def test_calibrated_bands_score_about_right_and_say_nothing():
+def calibrated_scores():
     rng = np.random.default_rng(1)
     y = rng.normal(0.0, 1000.0, 20000)
-    s = score(y, _bands(np.zeros(y.size), 1000.0))
+    return score(y, _bands(np.zeros(y.size), 1000.0))
+
+
+def test_calibrated_bands_score_about_right_and_say_nothing():
+    s = calibrated_scores()
     assert s["coverage95"] == pytest.approx(0.95, abs=0.01)
     assert s["coverage50"] == pytest.approx(0.50, abs=0.02)
     assert abs(s["bias_N"]) < 30.0
@@ -42,6 +46,13 @@ def test_a_biased_median_inside_a_wide_band_is_flagged_by_the_50_percent_band():
     assert len(notes) == 1
     assert "50 % band" in notes[0] and "overstates" in notes[0]
     assert re.search(r"off by \+2[56]\d\d N on average", notes[0]), notes[0]
+    # validate()'s whole result gives every test's sentences, named; before, it said nothing
+    # (no coverage keys at its top level: read as "calibrated")
+    doc = {"tests": [dict(s, test="eq-iv"), dict(calibrated_scores(), test="sine")]}
+    assert calibration_notes(doc) == [f"eq-iv: {notes[0]}"]
+    for wrong in ([s], {"package_version": "x"}, None):
+        with pytest.raises(ValueError, match="expected one test's scores"):
+            calibration_notes(wrong)
 
 
 def test_overconfident_and_conservative_bands_are_named():

@@ -49,8 +49,15 @@ COVERAGE50_RANGE = (0.30, 0.70)  # a 50 % band covering outside this: biased, to
 
 
 def calibration_notes(s: dict) -> list[str]:
-    """One sentence per sign of miscalibration in a test's scores (score's dict), none if the
-    bands look calibrated."""
+    """One sentence per sign of miscalibration in a test's scores (score's dict, or one entry of
+    validate()'s "tests"), none if the bands look calibrated. Given validate()'s whole result,
+    the sentences of every test, each starting with the test's id."""
+    if isinstance(s, dict) and isinstance(s.get("tests"), list):
+        return [f"{t.get('test', '?')}: {line}" for t in s["tests"] for line in calibration_notes(t)]
+    if not (isinstance(s, dict) and "coverage95" in s and "coverage50" in s):
+        raise ValueError("calibration_notes: expected one test's scores (a dict with coverage95 "
+                         "and coverage50, e.g. validate(...)['tests'][0]) or validate()'s result, "
+                         f"got {type(s).__name__}" + (f" with keys {sorted(s)[:6]}" if isinstance(s, dict) else ""))
     out = []
     c95, c50 = s.get("coverage95"), s.get("coverage50")
     bias = s.get("bias_N")
