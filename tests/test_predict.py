@@ -200,6 +200,13 @@ def test_cycle_bounds_of_a_record():
     x = np.sin(2 * np.pi * t)
     b = cycle_bounds(x)
     assert len(b) == 2 and all(j - i == 200 for i, j in b)
+    # wiggles of 3 % of the amplitude (a ground motion's small reversals) cut no cycle; before,
+    # every one of them did (the demo's Kobe table listed 44 "cycles", some of 0.01-0.02 s)
+    wiggly = x + 0.03 * np.sin(2 * np.pi * 40 * t)
+    from frictionuq.noise import reversal_indices
+    assert reversal_indices(wiggly, 0.0).size > 100
+    bw = cycle_bounds(wiggly)
+    assert len(bw) == 2 and all(abs(i - i0) <= 3 and abs(j - j0) <= 3 for (i, j), (i0, j0) in zip(bw, b))
     assert cycle_bounds(x[:150]) == []                # fewer than 3 reversals: no complete cycle
     F = np.where(np.gradient(x) > 0, 2.0, -3.0)[None, :]
     tab = cycle_table(t, x, F, b)
@@ -218,7 +225,8 @@ def test_noise_correlation_is_converted_to_the_prediction_rate():
 
 @pytest.mark.parametrize("case", ["missing-file", "missing-column", "text-cell", "time-back",
                                   "amplitude", "frequency", "not-fit-dir", "no-level-no-law",
-                                  "applied-text", "out-not-empty"])
+                                  "applied-text", "out-not-empty", "mm-harmonic", "mm-input",
+                                  "clean-harmonic"])
 def test_bad_input_exit_2_one_line_nothing_written(fit_dir, tmp_path, capsys, case):
     X = tmp_path / "X.csv"
     rows = [(k * 0.01, float(0.01 * np.sin(k * 0.1))) for k in range(50)]
@@ -248,6 +256,14 @@ def test_bad_input_exit_2_one_line_nothing_written(fit_dir, tmp_path, capsys, ca
         applied, frag = "0.1", "applied force 0.1 kN (100 N) (fitted: 0.267 kN (267 N)) and no usable force-dependence law"
     elif case == "applied-text":
         applied, frag = "heavy", "not a number"
+    elif case == "mm-harmonic":        # 25 mm typed as 25 (m): refused, not predicted
+        src, frag = ["--harmonic", "25,1"], ("harmonic input: the drive's amplitude is 25 m, above "
+                                             "1 m, which no damper test reaches")
+    elif case == "mm-input":
+        X.write_text("time,displacement\n" + "".join(f"{a!r},{1e3 * b!r}\n" for a, b in rows))
+        src, frag = ["--input", str(X)], "X.csv: the drive's amplitude is 13.15 m, above 1 m"
+    elif case == "clean-harmonic":
+        src, frag = ["--harmonic", "0.01,0.5", "--clean-input"], "a harmonic is always clean"
     else:
         out.mkdir()
         (out / "keep.txt").write_text("mine")
@@ -261,6 +277,24 @@ def test_bad_input_exit_2_one_line_nothing_written(fit_dir, tmp_path, capsys, ca
     else:
         assert not out.exists()
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".out")]
+
+
+def test_a_generated_drive_is_predicted_clean_and_its_source_recorded(fit_dir, tmp_path):
+    """clean_input: a CSV that is a generated drive (the pipeline's ground-motion histories) gets
+    the harmonic's treatment, dead band 0 and no drive filter, not a measured record's noise
+    estimate; prediction.json records where it came from."""
+    t = np.arange(0, 12.5, 0.01)
+    X = tmp_path / "X.csv"
+    pd.DataFrame({"time": t, "displacement": AMP * np.sin(2 * np.pi * FREQ * t)}).to_csv(
+        X, index=False, float_format="%.9g")
+    src = {"record": "kobe", "peak_m": 0.01, "rate_hz": 100.0}
+    meta = write_prediction(fit_dir, tmp_path / "p", input_csv=X, applied=0.267, n_draws=20,
+                            clean_input=True, source=src)
+    inp = meta["input"]
+    assert inp["kind"] == "generated record" and inp["eps_m"] == 0.0 and inp["drive_lowpass"] is None
+    assert inp["source"] == src and "clean generated drive" in inp["eps_rule"]
+    measured = write_prediction(fit_dir, tmp_path / "m", input_csv=X, applied=0.267, n_draws=20)
+    assert measured["input"]["kind"] == "record" and measured["input"]["eps_m"] > 0
 
 
 def test_library_refuses_two_inputs(fit_dir, tmp_path):

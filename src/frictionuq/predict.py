@@ -16,11 +16,14 @@ Given a fit output folder (`frictionuq fit`, see frictionuq.infer.fit) and an ap
   ("_model") bands, and in the noisy bands only with include_offset=True (default False: the
   noisy bands then describe what a zeroed load cell would read).
 * Reversal dead band: eps = noise.default_eps(x) for a measured record (CSV input), 0 for the
-  clean harmonic.
+  clean harmonic and for a CSV given as a clean generated drive (clean_input=True: a ground
+  motion's displacement history, which the pipeline writes).
 * Cycles: the harmonic is generated as whole periods starting at x = 0 moving up, so its cycles
   are the periods; for a record, a cycle runs from one turning point to the next turning point in
-  the same direction (every second reversal of the kernel's detector with the record's eps);
-  a record with fewer than 3 reversals has no complete cycle (empty table). Energy per cycle is
+  the same direction, the turning points being the extremes the kernel's detector finds with a
+  dead band of CYCLE_DEAD_BAND (5 %) of the record's amplitude (largest |x - median x|), or eps
+  if larger: wiggles smaller than that (micrometres on a ground motion's history) do not cut a
+  cycle. A record with fewer than 3 such turning points has no complete cycle (empty table). Energy per cycle is
   the loop integral of F dx (trapezoid rule) of the noise-free model force. For a periodic
   drive the loop closes and this is the energy dissipated; for an irregular record (a ground
   motion) a "cycle" need not return to its starting displacement, and the integral is the net
@@ -48,6 +51,11 @@ from .fitdir import campaign_applied_unit, load_summary, not_converged
 QUANTILES = (2.5, 25.0, 50.0, 75.0, 97.5)
 HARMONIC_CYCLES = 3
 HARMONIC_SAMPLES_PER_CYCLE = 200
+#: a record's cycles turn where the motion reverses by more than this fraction of its amplitude
+CYCLE_DEAD_BAND = 0.05
+#: an input amplitude (largest |x - median x|) above this is refused: no damper test moves a
+#: metre; it is millimetres given as metres (inputs are in SI)
+AMPLITUDE_PLAUSIBLE_M = 1.0
 BAND_COLUMNS = ["time", "displacement",
                 "force_median", "force_q2.5", "force_q25", "force_q75", "force_q97.5",
                 "force_model_median", "force_model_q2.5", "force_model_q25", "force_model_q75",
@@ -166,13 +174,17 @@ def band_table(t, x, F_noisy: np.ndarray, F_model: np.ndarray) -> pd.DataFrame:
 def cycle_bounds(x, eps: float = 0.0, samples_per_cycle: int | None = None) -> list[tuple[int, int]]:
     """Sample index pairs (start, end) of the complete cycles: whole periods of a generated
     harmonic (samples_per_cycle given), else turning point to the next turning point in the same
-    direction."""
+    direction, the turning points being the extremes of reversals larger than CYCLE_DEAD_BAND
+    times the record's amplitude (or eps, if larger)."""
     x = np.asarray(x, float)
     if samples_per_cycle:
         n = (x.size - 1) // samples_per_cycle
         return [(c * samples_per_cycle, (c + 1) * samples_per_cycle) for c in range(n)]
-    from .noise import reversal_indices
-    turn = reversal_indices(x, float(eps)) - 1
+    if x.size < 3:
+        return []
+    from .noise import reversal_flags
+    band = max(float(eps), CYCLE_DEAD_BAND * float(np.max(np.abs(x - np.median(x)))))
+    turn = np.flatnonzero(reversal_flags(x, band)) - 1      # the flag sits after the extreme
     return [(int(turn[i]), int(turn[i + 2])) for i in range(0, turn.size - 2, 2)]
 
 
@@ -270,18 +282,35 @@ def fit_drive_lowpass(summary: dict, eps: float) -> float | None:
 # ---------------------------------------------------------------- files
 
 
+def check_amplitude(x, what: str) -> None:
+    """Refuse a drive whose amplitude (largest |x - median x|) is above AMPLITUDE_PLAUSIBLE_M:
+    millimetres given as metres."""
+    amp = float(np.max(np.abs(x - np.median(x)))) if np.size(x) else 0.0
+    if amp > AMPLITUDE_PLAUSIBLE_M:
+        raise InputError(f"{what}: the drive's amplitude is {amp:.4g} m, above "
+                         f"{AMPLITUDE_PLAUSIBLE_M:g} m, which no damper test reaches: displacements "
+                         f"are in metres (25 mm is 0.025)")
+
+
 def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied: float,
                      applied_unit: str | None = None, n_draws: int = 400, seed: int = 1,
-                     include_offset: bool = False) -> dict:
+                     include_offset: bool = False, clean_input: bool = False,
+                     source: dict | None = None) -> dict:
     """Predict and write out_dir/bands.csv, cycles.csv and prediction.json (the folder is
     replaced as a whole, atomically). `applied` is in `applied_unit`, by default the fitted
-    campaign's applied unit; harmonic = (amplitude m, frequency Hz). Returns prediction.json."""
+    campaign's applied unit; harmonic = (amplitude m, frequency Hz). clean_input: the CSV is a
+    clean generated drive (a ground motion's displacement history), predicted like the harmonic
+    with eps = 0 and unfiltered, not as a measured record; source: where such a drive came from
+    (recorded in prediction.json's input). A drive of amplitude above AMPLITUDE_PLAUSIBLE_M is
+    refused. Returns prediction.json."""
     from . import __version__, units as U
     from .campaign import sha256_file
     from .noise import default_eps
     fit_dir, out_dir = Path(fit_dir), Path(out_dir)
     if (input_csv is None) == (harmonic is None):
         raise InputError("give exactly one input: a displacement CSV or a harmonic (amplitude, frequency)")
+    if clean_input and input_csv is None:
+        raise InputError("clean_input (--clean-input) describes an input CSV; a harmonic is always clean")
     check_seed(seed, "predict")
     summary = load_summary(fit_dir)
     atomic.check_replaceable(fit_dir, out_dir, "prediction.json", "fit", "a prediction folder")
@@ -300,15 +329,21 @@ def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied
     lowpass_mult = None
     if input_csv is not None:
         t, x, sig = read_input(input_csv)
-        try:
-            eps = default_eps(x)
-        except ValueError as e:
-            raise InputError(f"{input_csv}: {e}") from None
-        lowpass_mult = fit_drive_lowpass(summary, eps)  # a measured record: filtered like the fit's
+        check_amplitude(x, str(input_csv))
+        if clean_input:
+            eps, rule = 0.0, "0: a clean generated drive (clean_input)"
+        else:
+            try:
+                eps = default_eps(x)
+            except ValueError as e:
+                raise InputError(f"{input_csv}: {e}") from None
+            rule = "noise.default_eps (8 x the displacement-noise sd)"
+            lowpass_mult = fit_drive_lowpass(summary, eps)  # measured: filtered like the fit's
         spc = None
-        inp = {"kind": "record", "file": str(input_csv), "sha256": sha256_file(input_csv),
+        inp = {"kind": "generated record" if clean_input else "record", "file": str(input_csv),
+               "sha256": sha256_file(input_csv), "source": source,
                "samples": int(t.size), "duration_s": float(t[-1] - t[0]),
-               "eps_m": eps, "eps_rule": "noise.default_eps (8 x the displacement-noise sd)",
+               "eps_m": eps, "eps_rule": rule,
                "drive_lowpass": lowpass_mult,
                "applied_signal": "from the file's `applied` column" if sig is not None else
                "constant at the applied force"}
@@ -318,6 +353,7 @@ def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied
         except (TypeError, ValueError):
             raise InputError(f"harmonic input: expected (amplitude m, frequency Hz), got {harmonic!r}") from None
         t, x = harmonic_input(amp, freq)
+        check_amplitude(x, "harmonic input")
         sig, eps, spc = None, 0.0, HARMONIC_SAMPLES_PER_CYCLE
         inp = {"kind": "harmonic", "amplitude_m": float(amp), "frequency_hz": float(freq),
                "cycles": HARMONIC_CYCLES, "samples_per_cycle": HARMONIC_SAMPLES_PER_CYCLE,

@@ -113,7 +113,7 @@ def _cmd_predict(a):
     m = write_prediction(a.fit_dir, a.out, input_csv=a.input,
                          harmonic=_harmonic_arg(a.harmonic) if a.harmonic else None,
                          applied=a.applied, n_draws=a.draws, seed=a.seed,
-                         include_offset=a.include_offset)
+                         include_offset=a.include_offset, clean_input=a.clean_input)
     ap = m["applied"]
     print(f"wrote {a.out}: bands.csv, cycles.csv, prediction.json at applied {ap['value']:g} "
           f"{ap['unit']} ({m['draws_source']}, {m['n_draws']} draws; time s, displacement m, "

@@ -167,6 +167,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--seed", type=_seed, default=1)
     s.add_argument("--include-offset", action="store_true",
                    help="add the fitted load-cell offset to the noisy bands (default: excluded)")
+    s.add_argument("--clean-input", action="store_true",
+                   help="the --input CSV is a clean generated drive (e.g. a ground motion's "
+                        "displacement history): reversal dead band 0 and no drive filter, as for "
+                        "--harmonic (default: a measured record, its dead band from its noise)")
     s.set_defaults(func=C._cmd_predict)
 
     s = sub.add_parser("advantage", help="mechanical advantage C and friction coefficient mu per applied force")

@@ -147,8 +147,9 @@ def _predict(wf, task, log):
         log(f"ground motion {e.get('record') or e['file']}: {t.size} samples at "
             f"{e['rate_hz']:g} Hz, peak "
             f"{e['peak_m'] * 1e3:g} mm")
+        src = {k: e[k] for k in ("record", "file", "column", "peak_m", "rate_hz") if k in e}
         meta = write_prediction(fit_dir, out, input_csv=csv, applied=e["applied"],
-                                n_draws=p["n_draws"], seed=wf.seed)
+                                n_draws=p["n_draws"], seed=wf.seed, clean_input=True, source=src)
     else:
         meta = write_prediction(fit_dir, out, harmonic=(e["amplitude_m"], e["frequency_hz"]),
                                 applied=e["applied"], n_draws=p["n_draws"], seed=wf.seed)

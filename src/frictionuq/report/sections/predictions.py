@@ -93,7 +93,14 @@ def _input_rows(meta: dict) -> list[tuple[str, object]]:
         return [("input", "harmonic (clean sine from x = 0)"),
                 ("amplitude (mm)", scaled(inp.get("amplitude_m"), 1e3)),
                 ("frequency (Hz)", num(inp.get("frequency_hz"))), ("cycles", inp.get("cycles", DASH))]
-    return [("input", f"record {inp.get('file', DASH)}"), ("samples", inp.get("samples", DASH)),
+    src = inp.get("source") or {}
+    if inp.get("kind") == "generated record" and src:
+        what = (f"ground motion {src.get('record') or src.get('file')}, scaled to a peak of "
+                f"{scaled(src.get('peak_m'), 1e3)} mm, at {num(src.get('rate_hz'))} Hz (a clean "
+                f"generated drive: dead band 0, unfiltered), written to {inp.get('file', DASH)}")
+    else:
+        what = f"record {inp.get('file', DASH)}"
+    return [("input", what), ("samples", inp.get("samples", DASH)),
             ("duration (s)", num(inp.get("duration_s"))),
             ("dead band eps (µm)", scaled(inp.get("eps_m"), 1e6, 3)),
             ("applied-force signal", inp.get("applied_signal", DASH))]
