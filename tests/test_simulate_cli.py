@@ -41,6 +41,23 @@ def test_simulate_matches_library(files, capsys, model):
     assert meta["effects"]["applied_tracking"] == {"beta_app": 0.8} and len(meta["input_sha256"]) == 64
 
 
+def test_simulate_takes_the_fits_reversal_rule(files):
+    """--reversal extreme re-simulates as `fit` does on measured records (its default rule): the
+    library's result with that rule, recorded in the sidecar; with eps > 0 it differs from the
+    spec's causal 'detection' rule, the default."""
+    t, x, a, X, P, F = files
+    effects = {"reversal_hump": {"a_hump": 0.2, "l_hump": 3e-3}, "applied_tracking": {"beta_app": 0.8}}
+    base = ["simulate", "--params", str(P), "--input", str(X), "--eps", "1e-3"]
+    assert main(base + ["--out", str(F), "--reversal", "extreme"]) == 0
+    ref = fq.simulate(t, x, brfd_params(133.0), effects=effects, eps=1e-3, applied=a, reversal="extreme")
+    np.testing.assert_allclose(np.loadtxt(F, delimiter=",", skiprows=1)[:, 2], ref, rtol=1e-11, atol=1e-9)
+    assert json.loads(F.with_name("F.csv.json").read_text())["reversal"] == "extreme"
+    D = F.with_name("D.csv")
+    assert main(base + ["--out", str(D)]) == 0
+    assert json.loads(D.with_name("D.csv.json").read_text())["reversal"] == "detection"
+    assert np.max(np.abs(np.loadtxt(D, delimiter=",", skiprows=1)[:, 2] - ref)) > 100.0
+
+
 def _edit(P, **changes):
     d = json.loads(P.read_text())
     for k, v in changes.items():

@@ -57,8 +57,11 @@ def read_drive(path) -> dict[str, np.ndarray]:
     return cols
 
 
-def simulate_files(params_path, input_path, out_path, model: str = "three_stage", eps: float = 0.0) -> int:
-    """Simulate the force for the record in `input_path`; write `out_path`. Returns the sample count."""
+def simulate_files(params_path, input_path, out_path, model: str = "three_stage", eps: float = 0.0,
+                   reversal: str = "detection") -> int:
+    """Simulate the force for the record in `input_path`; write `out_path`. reversal: the rule
+    (model.REVERSAL_RULES; `fit` uses "extreme" on measured records by default). Returns the
+    sample count."""
     params, effects = read_params(params_path)
     cols = read_drive(input_path)
     import math
@@ -73,7 +76,7 @@ def simulate_files(params_path, input_path, out_path, model: str = "three_stage"
                              "(--params or --input); choose another name")
     try:
         F = simulate(cols["time"], cols["displacement"], params, effects=effects, model=model,
-                     eps=eps, applied=cols.get("applied"))
+                     eps=eps, applied=cols.get("applied"), reversal=reversal)
     except InputError:
         raise
     except ValueError as e:
@@ -86,7 +89,7 @@ def simulate_files(params_path, input_path, out_path, model: str = "three_stage"
     atomic.write_text(out_path, buf.getvalue())
     atomic.write_json(f"{out_path}.json", {
         "package_version": __version__, "environment": environment(),
-        "command": "simulate", "model": model, "eps_m": eps,
+        "command": "simulate", "model": model, "eps_m": eps, "reversal": reversal,
         "parameters": params, "effects": effects or {},
         "params_file": str(params_path), "params_sha256": sha256_file(params_path),
         "input_file": str(input_path), "input_sha256": sha256_file(input_path),

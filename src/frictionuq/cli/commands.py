@@ -12,7 +12,7 @@ def _cmd_ingest(a):
 
 def _cmd_simulate(a):
     from ..simulate_io import simulate_files
-    n = simulate_files(a.params, a.input, a.out, model=a.model, eps=a.eps)
+    n = simulate_files(a.params, a.input, a.out, model=a.model, eps=a.eps, reversal=a.reversal)
     print(f"wrote {a.out}: {n} samples (time s, displacement m, force N)")
 
 

@@ -102,6 +102,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True, help="CSV to write: time, displacement, force (N)")
     s.add_argument("--model", default="three_stage", choices=["three_stage", "lugre"])
     s.add_argument("--eps", type=float, default=0.0, help="reversal dead-band (m), default 0")
+    s.add_argument("--reversal", default="detection", choices=["detection", "extreme"],
+                   help="where a reversal starts the backlash when eps > 0: 'detection' (default, "
+                        "the spec's causal rule) or 'extreme' (the sample after the extreme, the "
+                        "rule `fit` uses by default on measured records: give it, with the fit's "
+                        "eps, to re-simulate a fitted parameter set as the fit saw it)")
     s.set_defaults(func=C._cmd_simulate)
 
     s = sub.add_parser("twin", help="write a paper-twin campaign (published parameters)")
