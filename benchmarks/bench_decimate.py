@@ -25,7 +25,8 @@ def per_call(f, min_seconds: float = 0.5) -> float:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--walkers", type=int, default=36)
     a = ap.parse_args()
     rng = np.random.default_rng(1)

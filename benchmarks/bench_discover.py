@@ -159,7 +159,8 @@ class RowLog(list):
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--full", action="store_true")
     ap.add_argument("--refit", action="store_true")
     ap.add_argument("--jobs", type=int, default=1, help="discover's processes for the screening's "

@@ -48,7 +48,8 @@ def evidence_row(campaign_dir: Path, device: str, effect: str, seed: int) -> dic
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--effects", nargs="+", default=["stage2_nonlinear"])
     ap.add_argument("--devices", nargs="+", default=["brfd", "mfd"])
     ap.add_argument("--seeds", type=int, nargs="+", default=[11])

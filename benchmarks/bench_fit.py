@@ -117,7 +117,8 @@ def run(case: str, out: Path, simulate_at: str = "raw", sampler: str = "chains",
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--case", choices=["twin", "arts-d1", "all"], default="all")
     ap.add_argument("--simulate-at", choices=["raw", "kept", "both"], default="raw")
     ap.add_argument("--sampler", choices=["chains", "ensemble", "both"], default="chains")

@@ -109,7 +109,8 @@ def random_differences(ref, n_records: int) -> tuple[int, int]:
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--against", default="HEAD~1", help="git revision of the earlier kernel")
     ap.add_argument("--walkers", type=int, default=16)
     ap.add_argument("--repeat", type=int, default=3)

@@ -48,7 +48,8 @@ def spread(tests, cfg: FitConfig, effect: str, seed: int, extra: int, base: dict
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("campaign")
     ap.add_argument("--test", action="append", required=True, help="a test of the level (repeat)")
     ap.add_argument("--effect", action="append", required=True, help="a candidate effect (repeat)")

@@ -69,7 +69,8 @@ def naive_lugre(t, x, p):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repeat", type=int, default=7)
     a = ap.parse_args(argv)
 
@@ -108,11 +109,15 @@ def main(argv=None):
     print(f"{'target':34s} {'measured':>12s} {'needed':>12s}")
     for name, val, need in checks:
         print(f"{name:34s} {val:12.1f} {need:12.1f}  {'ok' if val >= need else 'MISSED'}")
+    import numba
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        print("note: one numba thread: the batch target assumes both cores (prange over the "
+              "vectors); unset NUMBA_NUM_THREADS to measure it")
 
 
 def _numba_threads():
     import numba
-    return f"{numba.config.NUMBA_NUM_THREADS} ({numba.config.THREADING_LAYER})"
+    return f"{numba.config.NUMBA_NUM_THREADS} (threading layer: {numba.config.THREADING_LAYER})"
 
 
 if __name__ == "__main__":

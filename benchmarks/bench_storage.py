@@ -6,7 +6,7 @@ shape of a fit's stored run (16 chains, --ndim parameters, one blob column per r
 statistic). Also checks that the two files hold the same chain, log-probabilities, blobs,
 acceptance counts and random state, read by emcee's own backend.
 
-    .venv/bin/python benchmarks/bench_storage.py [--steps 3000] [--ndim 16] [--blobs 13]
+    .venv/bin/python benchmarks/bench_storage.py [--steps 3000] [--walkers 16] [--ndim 16] [--blobs 13]
 """
 from __future__ import annotations
 
@@ -54,7 +54,8 @@ def run(kind: str, path: Path, steps: int, nw: int, ndim: int, nblob: int):
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--steps", type=int, default=3000)
     ap.add_argument("--walkers", type=int, default=16)
     ap.add_argument("--ndim", type=int, default=16)

@@ -31,7 +31,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--levels", type=float, nargs="+", default=[35.0, 53.0, 133.0])
     ap.add_argument("--campaign", default=str(ROOT / "data/brfd-twin"))
     a = ap.parse_args(argv)

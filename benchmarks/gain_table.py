@@ -99,7 +99,8 @@ def _f(v, spec="+.1f") -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("rows", nargs="+", type=Path, help="JSON-lines files of bench_discover.py --rows")
     a = ap.parse_args(argv)
     for p in a.rows:
@@ -109,6 +110,9 @@ def main(argv=None) -> int:
         rows = read_rows(a.rows)
     except ValueError as e:
         ap.error(str(e))
+    if not rows:
+        ap.error(f"no rows in {', '.join(map(str, a.rows))}: expected JSON lines of "
+                 "bench_discover.py --rows")
     print(f"{len(rows)} campaigns ({sum(r['hidden'] == 'none' for r in rows)} clean); in-sample "
           "(MAP) gains over the baseline, nats")
     print(f"{'effect':<20} {'dev':<5} {'k':>2} {'chi2':>5} | {'clean n':>7} {'max':>7} {'q90':>7} | "

@@ -60,6 +60,18 @@ def test_quick_workflow_runs_and_writes_every_output(quick):
     cmp = json.loads((out / "compare" / "compare.json").read_text())
     assert set(cmp["levels"][0]["models"]) == {"three_stage", "lugre"}
     assert cmp["levels"][0]["pairs"], "two tests: the comparison is cross-validated"
+    # the comparison records the tests it compared (not the fits'), each level its provenance
+    assert cmp["config"]["tests"] == ["sine-1Hz-36lb-1in", "sine-2Hz-36lb-0.5in"]
+    assert all(m["tests"] is None for m in cmp["config"]["models"].values())
+    lvl = json.loads((out / "compare" / "applied-36lb" / "lugre" / "level.json").read_text())
+    assert lvl["package_version"] and lvl["seed"] == 1 and lvl["config"]["model"] == "lugre"
+    # the ground motion is a clean generated drive (dead band 0, unfiltered), its source recorded,
+    # and its cycles are between real turning points, not micrometre wiggles
+    kobe = json.loads((out / "predict" / "kobe-10mm-36lb" / "prediction.json").read_text())
+    assert kobe["input"]["kind"] == "generated record" and kobe["input"]["eps_m"] == 0.0
+    assert kobe["input"]["source"] == {"record": "kobe", "peak_m": 0.01, "rate_hz": 256.0}
+    cyc = pd.read_csv(out / "predict" / "kobe-10mm-36lb" / "cycles.csv")
+    assert len(cyc) and (cyc["t_end"] - cyc["t_start"]).min() > 0.1, cyc
     prov = json.loads((out / "run.json").read_text())
     assert prov["package_version"] and prov["workflow"]["file"] == str(wf.resolve())
     assert all(t["status"] == "ran" for t in prov["tasks"])

@@ -231,6 +231,8 @@ def test_optional_sections_content(rendered_report):
     assert "f" * 64 in prov and "report generated" in prov and '"published": "brfd"' in prov
     # the task times are summed as such, the wall time beside (the fixture's run took 60 s)
     assert "add up to" in prov and "this run had taken 60 s when the record was written" in prov
+    # the output files, each with what records its version, configuration and seed
+    assert "output files: " in prov and "fit/summary.json" in prov and "posterior.nc" in prov
 
 
 @pytest.mark.slow
@@ -370,3 +372,30 @@ def test_outputs_the_workflow_no_longer_asks_for_are_not_shown(report_run, parti
     assert "<table" not in comp
     assert 'id="prediction-' not in pred and 'id="predictions-validation"' not in pred
     assert "No prediction for a new drive in this workflow" in pred
+
+
+def test_provenance_lists_the_output_files_and_what_records_them(tmp_path):
+    """The footer says the run folder's files are named in the provenance section: they are,
+    each with the file that records its package version, configuration and seed (itself, the
+    JSON beside it or one folder up, a netCDF/HDF5 file's attributes), or a dash."""
+    from types import SimpleNamespace
+    from frictionuq.report.sections.provenance import _outputs
+    run = tmp_path / "run"
+    (run / "predict" / "h").mkdir(parents=True)
+    (run / "ingest" / "tests").mkdir(parents=True)
+    (run / "predict" / "h" / "prediction.json").write_text('{"package_version": "0.1.0", "seed": 7}')
+    (run / "predict" / "h" / "bands.csv").write_text("time\n0\n")
+    (run / "ingest" / "manifest.json").write_text('{"package_version": "0.1.0"}')
+    (run / "ingest" / "tests" / "a.csv").write_text("time\n0\n")
+    (run / "fit").mkdir()
+    (run / "fit" / "posterior.nc").write_bytes(b"x")
+    (run / "stray.csv").write_text("x\n")
+    (run / ".tmp-x").mkdir()
+    (run / ".tmp-x" / "half.json").write_text("{")
+    html = unescape(_outputs(SimpleNamespace(run_dir=run))[0]["html"])
+    rows = dict(re.findall(r"<tr><td>([^<]+)</td><td>[^<]*</td><td>([^<]*)</td></tr>", html))
+    assert rows == {"fit/posterior.nc": "its own attributes", "ingest/manifest.json": "itself",
+                    "ingest/tests/a.csv": "ingest/manifest.json",
+                    "predict/h/bands.csv": "predict/h/prediction.json",
+                    "predict/h/prediction.json": "itself (seed 7)", "stray.csv": "\u2013"}, html
+    assert "output files: 6" in html

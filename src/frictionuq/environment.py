@@ -25,6 +25,13 @@ PACKAGES = ("numpy", "scipy", "numba", "llvmlite", "emcee", "arviz", "arviz-base
             "arviz-plots", "pandas", "xarray", "h5py", "h5netcdf", "matplotlib")
 
 
+def timestamp() -> str:
+    """Now, as every output writes a time: ISO 8601 to the second, local time with its UTC
+    offset ("2026-12-05T12:36:29+00:00")."""
+    import datetime as _dt
+    return _dt.datetime.now().astimezone().isoformat(timespec="seconds")
+
+
 def _version(dist: str) -> str | None:
     try:
         return metadata.version(dist)

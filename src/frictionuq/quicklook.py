@@ -21,6 +21,7 @@ from .campaign import load_campaign
 from .errors import InputError
 from .model import simulate
 from .noise import count_reversals, default_eps, displacement_noise_sd
+from .wording import count
 
 
 def _eps(arg, x, where: str) -> float:
@@ -91,7 +92,7 @@ def campaign_table(path, published: str = "none", eps="auto") -> str:
     """The table as text, with a header line naming the campaign and units."""
     df, camp = campaign_frame(path, published, eps)
     from . import __version__
-    head = (f"frictionuq {__version__} | campaign {camp.name!r}: {len(camp.tests)} tests, device {camp.device or '?'}; "
+    head = (f"frictionuq {__version__} | campaign {camp.name!r}: {count(len(camp.tests), 'test')}, device {camp.device or '?'}; "
             f"source units {camp.units}; values below in the units of each column header")
     note = ""
     if published and published != "none":
@@ -100,8 +101,8 @@ def campaign_table(path, published: str = "none", eps="auto") -> str:
                 "published parameters are the paper's own prototype tests; calibrating them to these "
                 "records is the next stage (Bayesian calibration).")
         for f in df.attrs["far_from_published"]:
-            note += (f"\nflags: {f}: beyond {BEYOND_FACTOR:g} x the published levels, the published "
-                     "model is extrapolated")
+            note += (f"\nflags: {f}: more than a factor {BEYOND_FACTOR:g} from the published levels, "
+                     "the published model is extrapolated")
     from .quality import quality
     flags = [f"flags: {te.id}: {'; '.join(q['flags'])}" for te in camp.tests
              if (q := quality(te))["flags"]]

@@ -131,6 +131,7 @@ def validate(fit_dir, campaign_path, test_ids, out_dir, *, n_draws: int = 400, s
         for tid in test_ids:
             te = by_id[tid]
             r = te.record
+            log(f"{tid}: predicting {r.n} samples")      # progress; the scores are in the result
             eps = default_eps(r.x, where=f"test {tid}")
             lowpass_mult = fit_drive_lowpass(summary, eps)   # filtered like the fit's records
             p = predict(fit_dir, te.applied, r.t, r.x, eps=eps, n_draws=n_draws, seed=seed,
@@ -149,8 +150,6 @@ def validate(fit_dir, campaign_path, test_ids, out_dir, *, n_draws: int = 400, s
                 _figure(tmp / f"{tid}.png", r.t, r.force, p.bands,
                         f"{camp.name} / {tid}: coverage95 {s['coverage95']:.2f}, NRMSE {s['nrmse']:.3f} "
                         f"({p.draws.source})")
-            log(f"{tid}: coverage95 {s['coverage95']:.3f}, coverage50 {s['coverage50']:.3f}, "
-                f"RMSE {s['rmse_N']:.4g} N, NRMSE {s['nrmse']:.4f}")
         doc = {"package_version": __version__, "environment": environment(),
                "fit_dir": str(Path(fit_dir).resolve()), "campaign": camp.name,
                "campaign_path": str(Path(campaign_path).resolve()), "seed": seed, "n_draws": n_draws,

@@ -3,11 +3,13 @@ from __future__ import annotations
 
 import sys
 
+from ..wording import count
+
 
 def _cmd_ingest(a):
     from ..ingest import ingest
     m = ingest(a.campaign, a.out)
-    print(f"ingested {len(m['tests'])} tests of campaign {m['name']!r} into {a.out} (SI units)")
+    print(f"ingested {count(len(m['tests']), 'test')} of campaign {m['name']!r} into {a.out} (SI units)")
 
 
 def _cmd_simulate(a):
@@ -19,7 +21,7 @@ def _cmd_simulate(a):
 def _cmd_twin(a):
     from ..twins import write_twin
     m = write_twin(a.device, a.out, seed=a.seed)
-    print(f"wrote the {a.device.upper()} twin campaign to {a.out}: {len(m['tests'])} tests, seed {a.seed}")
+    print(f"wrote the {a.device.upper()} twin campaign to {a.out}: {count(len(m['tests']), 'test')}, seed {a.seed}")
 
 
 def _cmd_fit(a):

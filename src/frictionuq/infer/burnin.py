@@ -104,8 +104,9 @@ def burn_in(target, state: np.ndarray, cfg, seed: int, rng, log=None,
         level = float(np.median(lpc[cfg.burn_steps // 2:]))
         log(f"burn-in round {rnd + 1}: acceptance {np.mean(bs.acceptance_fraction):.2f}, "
             f"median log-posterior (u) {level:.6g} (best {np.max(lpc):.6g}), "
-            f"{stuck} stuck walkers dropped, proposal width ratio {ratio:.2f}, median shift "
-            f"{shift:.2f} widths")
+            f"{stuck} stuck walkers dropped, "
+            + (f"proposal width ratio {ratio:.2f}, median shift {shift:.2f} widths"
+               if np.isfinite(ratio) else "first proposal fitted (no earlier one to compare)"))
         # still climbing (the median walker gained more than the posterior's own spread of the
         # log density, sqrt(D/2)), walkers stuck, or the ensemble still spreading: another round
         settled = stuck == 0 and level - prev < np.sqrt(ndim / 2.0) and \

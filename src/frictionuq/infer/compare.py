@@ -39,6 +39,7 @@ from .elpd import (OFFSET_MODES, elpd_difference, elpd_total, heldout_loglik, lo
                    weights_n_eff)
 from .likelihood import LogPosterior, records_from_tests
 from .sampler import sample
+from ..wording import count
 
 DEFAULT_MODELS = ("three_stage", "lugre")
 
@@ -89,7 +90,7 @@ def _compare_fit(job, log) -> dict:
     if k is None:
         _, _, lp_full, res = _fit(tests, cfg, seed, f"{name}/all", work_dir, log)
         rmse, per = _rmse(lp_full, res, cfg.n_predictive, np.random.default_rng([seed, 7]))
-        log(f"{name}: RMSE {rmse:.4g} N (all {len(tests)} tests)")
+        log(f"{name}: RMSE {rmse:.4g} N (all {count(len(tests), 'test')})")
         return {"rmse": rmse, "rmse_per_test": per, "fit": _fit_record(res),
                 "seconds": time.perf_counter() - t0}
     held = tests[k]

@@ -28,6 +28,7 @@ from .priors import apply_overrides, default_priors, record_scales
 from .config import FitConfig  # noqa: F401  (re-exported: its home until 2026-12-01)
 from .sampler import _nwalkers, sample
 from .space import Space
+from ..wording import count
 
 CONVERGENCE = {"r_hat_max": 1.01, "ess_min": 400}
 
@@ -213,7 +214,7 @@ def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True
         if missing:
             raise ValueError(f"run_fit {spec.id}: the start lacks {missing}")
         theta0 = space.to_theta({n: start[n] for n in space.names})
-    log(f"fit {spec.id}: {len(records)} tests, {sum(r.n for r in records)} samples after decimation "
+    log(f"fit {spec.id}: {count(len(records), 'test')}, {sum(r.n for r in records)} samples after decimation "
         f"(factors {[r.q for r in records]}), {space.ndim} free parameters")
     from .priorpred import outside, prior_predictive
     ppc = prior_predictive(logpost, n=200, seed=spec.config.seed)

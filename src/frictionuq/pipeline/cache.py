@@ -12,10 +12,10 @@ import hashlib
 import json
 import os
 import re
-import time
 from pathlib import Path
 
 from .. import atomic
+from ..environment import timestamp
 
 CACHE_DIR = ".cache"
 KEY_FILE = ".task-key"       # in a task's own output folder: lets an interrupted fit resume
@@ -108,7 +108,7 @@ def state(run_dir, task) -> tuple[bool, str]:
 def record(run_dir, task, seconds: float) -> dict:
     from .. import __version__
     m = {"task": task.name, "stage": task.stage, "key": task.key, "package_version": __version__,
-         "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "seconds": seconds,
+         "finished": timestamp(), "seconds": seconds,
          "outputs": output_files(run_dir, task.outputs), "dep_outputs": dep_digests(run_dir, task)}
     atomic.write_json(manifest_path(run_dir, task.name), m)
     return m

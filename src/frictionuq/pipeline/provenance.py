@@ -4,11 +4,10 @@ RUN/run.json by the runner and shown in the report."""
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
 
 from .. import atomic
-from ..environment import environment
+from ..environment import environment, timestamp
 from . import cache
 
 RUN_FILE = "run.json"
@@ -47,7 +46,7 @@ def provenance(wf, statuses: dict | None = None, started: str | None = None) -> 
             "workflow": {"name": wf.name, "file": str(wf.path), "sha256": wf.sha256,
                          "config": wf.config},
             "seed": wf.seed, "started": started or prev.get("started"),
-            "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "inputs": inputs, "tasks": rows}
+            "finished": timestamp(), "inputs": inputs, "tasks": rows}
 
 
 def write(wf, statuses: dict, started: str) -> dict:

@@ -23,6 +23,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..environment import timestamp
 from ..errors import InputError
 from ..interrupts import interrupts
 from . import cache
@@ -170,7 +171,7 @@ def run(wf, targets=("all",), jobs: int = 1, scheduler: str | None = None, force
     # the workers before any log is written: an unreachable --scheduler is bad input too
     pool = (_Pool(jobs, scheduler) if any(tasks[n].heavy for n in todo) else _Pool(1, None)) \
         if todo else None
-    started = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+    started = timestamp()
     stamp = time.strftime("%Y%m%d-%H%M%S")
     res.log_file = Path(wf.out) / "logs" / f"run-{stamp}.log"
     disp = _Display(res.log_file, stream)

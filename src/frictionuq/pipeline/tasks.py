@@ -26,6 +26,7 @@ from pathlib import Path
 from .. import atomic
 from ..errors import InputError
 from . import cache
+from ..wording import count
 
 LOG_DIR = "logs/tasks"
 
@@ -77,7 +78,7 @@ def _fresh_dir(d: Path, key: str, log) -> None:
 def _ingest(wf, task, log):
     from ..ingest import ingest
     m = ingest(wf.campaign, Path(wf.out) / "ingest")
-    log(f"ingested {len(m['tests'])} tests of {m['name']!r}")
+    log(f"ingested {count(len(m['tests']), 'test')} of {m['name']!r}")
 
 
 def own_dir(run_dir, task) -> Path | None:
@@ -129,8 +130,11 @@ def _predict(wf, task, log):
     if task.name == "predict:validation":
         from ..validate import validate
         out = Path(wf.out) / "predict" / "validation"
-        validate(fit_dir, Path(wf.out) / "ingest", task.args["tests"], out,
-                 n_draws=p["n_draws"], seed=wf.seed, log=log)
+        doc = validate(fit_dir, Path(wf.out) / "ingest", task.args["tests"], out,
+                       n_draws=p["n_draws"], seed=wf.seed, log=log)
+        for s in doc["tests"]:
+            log(f"{s['test']}: coverage95 {s['coverage95']:.3f}, coverage50 {s['coverage50']:.3f}, "
+                f"RMSE {s['rmse_N']:.4g} N, NRMSE {s['nrmse']:.4f}")
         return
     from ..predict import write_prediction
     e = task.args["input"]
@@ -147,7 +151,7 @@ def _predict(wf, task, log):
         log(f"ground motion {e.get('record') or e['file']}: {t.size} samples at "
             f"{e['rate_hz']:g} Hz, peak "
             f"{e['peak_m'] * 1e3:g} mm")
-        src = {k: e[k] for k in ("record", "file", "column", "peak_m", "rate_hz") if k in e}
+        src = {k: e[k] for k in ("record", "file", "dt", "unit", "column", "peak_m", "rate_hz") if k in e}
         meta = write_prediction(fit_dir, out, input_csv=csv, applied=e["applied"],
                                 n_draws=p["n_draws"], seed=wf.seed, clean_input=True, source=src)
     else:
@@ -166,24 +170,32 @@ def _compare(wf, task, log):
     m = task.args["model"]
     d = own_dir(wf.out, task)
     _fresh_dir(d, task.key, log)
-    lv = compare_level(tests, {m: wf.fit_config(compare_model=m)}, wf.seed, log=log,
-                       work_dir=d / "chains")
+    cfg = wf.fit_config(compare_model=m)
+    lv = compare_level(tests, {m: cfg}, wf.seed, log=log, work_dir=d / "chains")
     lv["id"] = task.args["level"]
-    atomic.write_json(d / "level.json", jsonable(lv))
+    from .. import __version__
+    from ..environment import environment
+    atomic.write_json(d / "level.json", jsonable({
+        "package_version": __version__, "environment": environment(), "seed": wf.seed,
+        "config": cfg.to_json(), "tests": task.args["tests"], "level": lv}))
 
 
 def _compare_summary(wf, task, log):
+    from dataclasses import replace
     from ..infer.compare import merge_levels, write_compare
     camp, _ = _campaign(wf.out)
     models = wf.config["compare"]["models"]
     levels = []
     for lid in task.args["levels"]:
-        parts = [json.loads((Path(wf.out) / "compare" / lid / m / "level.json").read_text())
-                 for m in models]
-        levels.append(merge_levels(parts))
-    configs = {m: wf.fit_config(compare_model=m) for m in models}
+        docs = [json.loads((Path(wf.out) / "compare" / lid / m / "level.json").read_text())
+                for m in models]
+        # a level.json written before 2026-12-05 is the level itself, without its provenance
+        levels.append(merge_levels([doc.get("level", doc) for doc in docs]))
+    # the configurations as compared: the tests are those of the compared levels, not the fits'
+    configs = {m: replace(wf.fit_config(compare_model=m), tests=None, kinds=None) for m in models}
+    tests = [t for lv in levels for t in lv["tests"]]
     write_compare(Path(wf.out) / "compare", camp.name, Path(wf.out) / "ingest", configs, levels,
-                  seed=wf.seed, offset="marginal", applied_unit=camp.applied_si_unit)
+                  seed=wf.seed, offset="marginal", tests=tests, applied_unit=camp.applied_si_unit)
     log(f"comparison of {', '.join(models)} at {len(levels)} level(s) written")
 
 

@@ -93,8 +93,12 @@ def corner_figure(draws: dict[str, np.ndarray], title: str) -> bytes:
     return png(fig)
 
 
-def rank_figure(dt, names: list[str], title: str, max_chains: int = 8) -> bytes:
-    """Rank plot (ArviZ, through frictionuq.azadapter) of the first `max_chains` walkers."""
+RANK_CHAINS = 8
+
+
+def rank_figure(dt, names: list[str], title: str, max_chains: int = RANK_CHAINS) -> bytes:
+    """Rank plot (ArviZ, through frictionuq.azadapter) of the first `max_chains` chains (the
+    stored run's independent chains, or its ensemble's walkers)."""
     from .. import azadapter
     names = list(names)[:MAX_RANK_PARAMS]
     fig = azadapter.rank_figure(dt, names, max_chains=max_chains)
@@ -107,7 +111,7 @@ def rank_figure(dt, names: list[str], title: str, max_chains: int = 8) -> bytes:
             ax.set_xlabel("fractional rank (dimensionless)", fontsize=7)
             ax.set_ylabel("ECDF minus uniform", fontsize=7)
         ax.title.set_fontsize(8)
-    fig.suptitle(f"{title}\nrank ECDF minus uniform per walker (first {max_chains} walkers; "
+    fig.suptitle(f"{title}\nrank ECDF minus uniform per chain (first {max_chains} chains; "
                  "a well-mixed chain stays inside the envelope)", fontsize=10)
     try:
         fig.set_layout_engine("constrained")

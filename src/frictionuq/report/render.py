@@ -3,10 +3,10 @@ self-contained HTML file (inline CSS, images as base64 PNG data URIs, no script,
 URL), written atomically."""
 from __future__ import annotations
 
-import datetime as _dt
 from pathlib import Path
 
 from .. import __version__, atomic
+from ..environment import timestamp
 from ..errors import InputError
 from . import blocks as B
 from .context import Context, section_of
@@ -39,7 +39,7 @@ def alerts(ctx) -> list[str]:
 
 def render_html(ctx: Context, generated: str | None = None) -> str:
     """The report of the run behind `ctx` as an HTML string."""
-    generated = generated or _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+    generated = generated or timestamp()
     sections = build_sections(ctx, generated)
     desc = section_of(ctx.workflow, "workflow").get("description") or ""
     return _page(ctx.title(), desc, ctx.run_dir, generated, sections, alerts(ctx))
@@ -81,7 +81,7 @@ def render_discrepancy_page(folder, out_html=None) -> Path:
         raise InputError(f"{folder}: no discrepancy.json (run `frictionuq discover` first)")
     d = json.loads(p.read_text())
     ctx = Context(folder, {}, {})
-    generated = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+    generated = timestamp()
     st = d.get("seconds_by_stage") or {}
     stages = (" (" + ", ".join(f"{k} {v:.0f} s" for k, v in st.items()) + ")") if st else ""
     prov = [B.para(f"Made by frictionuq {d.get('package_version')} from campaign "

@@ -7,6 +7,7 @@ from ... import noise
 from ...quality import EPS_STROKE_MAX, FEW_REVERSALS, FORCE_PLAUSIBLE_N, STROKE_PLAUSIBLE_M, quality
 from .. import blocks as B
 from ..tables import DASH, nowrap, num, table
+from ...wording import count
 
 UM = 1e6
 
@@ -17,7 +18,7 @@ def build(ctx) -> list[dict]:
         return [B.note("No ingested campaign in this run (ingest/manifest.json missing): the "
                        "campaign overview is not available.")]
     unit = ctx.applied_unit()
-    head = [B.para(f"Campaign {camp.name!s}: {len(camp.tests)} tests. Device: "
+    head = [B.para(f"Campaign {camp.name!s}: {count(len(camp.tests), 'test')}. Device: "
                    f"{camp.device or 'not stated'}. {camp.description}".strip())]
     if camp.geometry:
         geo = ", ".join(f"{k} = {v:g}" + {"drum_radius": " m", "damping_radius": " m",
@@ -40,7 +41,8 @@ def build(ctx) -> list[dict]:
     cols = ["test", "data-quality flags", f"applied force ({unit})", "kind", "frequency (Hz)", "samples", "duration (s)",
             "force range (kN)", "displacement range (mm)", "displacement noise sd (µm)",
             "dead band eps (µm)", "reversals seen", "measured applied-force channel"]
-    blocks = head + [B.html(table(cols, rows, row_classes=classes, tid="campaign-table"))]
+    blocks = head + [B.html(table(cols, rows, row_classes=classes, tid="campaign-table",
+                                        caption="tests of the ingested campaign, with data-quality flags"))]
     blocks.append(B.note(
         "Displacement noise: robust estimate from 4th differences (frictionuq.noise); dead band "
         f"eps = {noise.EPS_MULTIPLIER:g} x noise sd; reversals counted by the kernel's detector "

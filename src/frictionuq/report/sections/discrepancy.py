@@ -10,6 +10,7 @@ from ...params import NOISE_EFFECTS
 from ...discrepancy import seedcheck
 from ... import units
 from ..tables import num, scaled, table
+from ...wording import count
 
 
 def build(ctx, folder=None) -> list[dict]:
@@ -47,7 +48,7 @@ def build(ctx, folder=None) -> list[dict]:
                 f"the tests do not share one force zero: their mean residuals about the baseline's "
                 f"zero spread by {num(b['spread_N'])} N where its noise allows "
                 f"{num(min(b['se_N'].values()))}-{num(max(b['se_N'].values()))} N per test "
-                f"(chi-square {num(b['chi2'])} on {b['df']} degrees of freedom, p = "
+                f"(chi-square {num(b['chi2'])} on {count(b['df'], 'degree')} of freedom, p = "
                 f"{b['p_value']:.2g} at {100 * b['alpha']:g} %). No effect of the library moves a "
                 "test's zero; fitting with each test's own (--force-offset per_test, or a "
                 "workflow's [fit] force_offset = \"per_test\") models it, and the per-test table "

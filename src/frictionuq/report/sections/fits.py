@@ -12,6 +12,7 @@ from .. import blocks as B
 from .. import figures as F
 from .. import figures_fit as FF
 from ..tables import DASH, badge, bullet_list, kv_table, num, scaled, table
+from ...wording import count
 
 
 def unit_of(name: str) -> str:
@@ -50,7 +51,8 @@ def overview(ctx, fits) -> list[dict]:
                      badge("yes" if ok else "NO", ok), scaled(f.get("rmse"), 1e-3)])
         classes.append("" if ok else "flagged")
     out = [B.html(table(["fit", f"applied force ({ctx.applied_unit()})", "tests", "model",
-                         "sampler steps", "converged", "RMSE (kN)"], rows, row_classes=classes))]
+                         "sampler steps", "converged", "RMSE (kN)"], rows, row_classes=classes,
+                        caption="fits: one per applied force (or test), summary.json"))]
     bad = [f["id"] for f in fits if not f.get("converged")]
     if bad:
         out.insert(0, B.warn(f"{len(bad)} of {len(fits)} fits did NOT converge ({', '.join(bad)}): "
@@ -111,10 +113,12 @@ def posterior_figures(ctx, fid: str, dt) -> list[dict]:
                     f"fit {fid}: corner plot", "Corner plot of the friction and backlash parameters "
                     f"(at most {FF.MAX_CORNER_DRAWS} draws; noise parameters left out).")]
     shown = names[:FF.MAX_RANK_PARAMS]
-    out.append(B.figure(FF.rank_figure(dt, shown, f"fit {fid}: rank plot"),
-                        f"fit {fid}: rank plot of the walkers",
-                        "Rank plot (ArviZ) of the first walkers: lines leaving the envelope mean "
-                        "walkers that have not mixed" +
+    out.append(B.figure(FF.rank_figure(dt, shown, f"fit {fid}: rank plot", FF.RANK_CHAINS),
+                        f"fit {fid}: rank plot of the chains",
+                        f"Rank plot (ArviZ) of the first {min(FF.RANK_CHAINS, post.sizes['chain'])} "
+                        f"of {post.sizes['chain']} chains (the stored "
+                        "run's independent chains, or its ensemble's walkers): lines leaving the "
+                        "envelope mean chains that have not mixed" +
                         (f"; first {len(shown)} of {len(names)} parameters." if len(shown) < len(names) else ".")))
     return out
 
@@ -234,8 +238,8 @@ def _between_tests(bt) -> list[dict]:
     each = ", ".join(f"{t} {num(m, 4)} N (se {num(bt.get('se_N', {}).get(t), 3)} N)"
                      for t, m in (bt.get("mean_residual_N") or {}).items())
     text = (f"The tests' force zeros {verdict} (spread of the per-test mean residuals "
-            f"{num(bt.get('spread_N'), 4)} N; chi-square {num(bt.get('chi2'), 4)} on {bt.get('df')} "
-            f"degrees of freedom, p = {num(bt.get('p_value'), 2)}, alpha {bt.get('alpha')}). "
+            f"{num(bt.get('spread_N'), 4)} N; chi-square {num(bt.get('chi2'), 4)} on "
+            f"{count(bt.get('df'), 'degree')} of freedom, p = {num(bt.get('p_value'), 2)}, alpha {bt.get('alpha')}). "
             f"Mean residual per test: {each}.")
     return [B.html(bullet_list([text])), B.note(f"Method: {bt.get('method', '')}")]
 

@@ -11,6 +11,7 @@ from ...infer.law import FORCE_DEPENDENT, LAW_FILE, law_values, load_law
 from .. import blocks as B
 from ..figures_levels import advantage_figure, across_figure, display
 from ..tables import DASH, interval, num, scaled, table
+from ...wording import count
 
 LAW_GRID = 120
 LAW_SEED = 1
@@ -103,7 +104,7 @@ def across(ctx) -> list[dict]:
         curves = law_curves(ctx, law, levels)
         out.append(B.para(f"Force-dependence law (fit/{LAW_FILE}): family {law.get('family', '?')} "
                           f"for the force-dependent parameters, fitted on "
-                          f"{len(law.get('levels', []))} levels."))
+                          f"{count(len(law.get('levels', [])), 'level')}."))
     elif len(positive) < 2:
         out.append(B.note(f"Only {len(positive)} fitted applied force above zero: a force-dependence "
                           "law needs fits at 2 or more applied forces > 0, so only the per-level "

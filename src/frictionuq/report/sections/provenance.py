@@ -1,5 +1,6 @@
 """Section "provenance": package version, workflow file and hash, configuration, seeds, input
-hashes, per-task run times and status (the `provenance` dict, format of run.json) and the
+hashes, per-task run times and status (the `provenance` dict, format of run.json), the output
+files of the run folder with what records their version, configuration and seed, and the
 report's generation time."""
 from __future__ import annotations
 
@@ -34,6 +35,56 @@ def _wall_seconds(started, finished) -> float | None:
                 ).total_seconds()
     except (TypeError, ValueError):
         return None
+
+
+OUTPUT_SUFFIXES = (".json", ".csv", ".nc", ".h5", ".png")
+MAX_OUTPUT_ROWS = 300
+
+
+def _recorded_by(path, run_dir) -> str:
+    """What records an output file's package version, configuration and seed: the file itself
+    (a JSON with package_version; the netCDF and HDF5 files' attributes) or the JSON beside it."""
+    if path.suffix in (".nc", ".h5"):
+        return "its own attributes"
+    if path.suffix == ".json":
+        try:
+            doc = json.loads(path.read_text())
+        except (OSError, ValueError):
+            return DASH
+        if isinstance(doc, dict) and "package_version" in doc:
+            seed = doc.get("seed")
+            return "itself" + ("" if seed is None else f" (seed {seed})")
+    for folder in (path.parent, path.parent.parent):      # beside it, or one folder up
+        if folder != run_dir.parent:
+            beside = sorted(p for p in folder.glob("*.json") if p != path and _has_version(p))
+            if beside:
+                return ", ".join(str(p.relative_to(run_dir)) for p in beside)
+    return DASH
+
+
+def _has_version(path) -> bool:
+    try:
+        return "package_version" in json.loads(path.read_text())
+    except (OSError, ValueError, TypeError):
+        return False
+
+
+def _outputs(ctx) -> list[dict]:
+    from pathlib import Path
+    run = Path(ctx.run_dir)
+    if not run.is_dir():
+        return [B.note(f"No run folder at {run}: no output files to list.")]
+    files = sorted(p for p in run.rglob("*") if p.is_file() and p.suffix in OUTPUT_SUFFIXES
+                   and not any(part.startswith(".") for part in p.relative_to(run).parts))
+    if not files:
+        return [B.note("No output files found in the run folder.")]
+    rows = [[str(p.relative_to(run)), num(p.stat().st_size / 1e3, 3), _recorded_by(p, run)]
+            for p in files[:MAX_OUTPUT_ROWS]]
+    more = len(files) - len(rows)
+    return [B.html(table(["file (in the run folder)", "size (kB)",
+                          "version, configuration and seed recorded in"], rows,
+                         caption=f"output files: {len(files)}" + (f", the first {len(rows)} listed"
+                                                                  if more > 0 else "")))]
 
 
 def build(ctx, generated: str) -> list[dict]:
@@ -89,6 +140,7 @@ def build(ctx, generated: str) -> list[dict]:
                                            "record was written") + ")")))
     else:
         out.append(B.note("No task record."))
+    out += _outputs(ctx)
     config = wf.get("config") if isinstance(wf.get("config"), dict) else ctx.workflow
     out.append(B.heading("Workflow configuration"))
     out.append(B.pre(json.dumps(config or {}, indent=2, sort_keys=False, default=str)))
