@@ -38,11 +38,12 @@ def interrupts():
     import signal
     intr = Interrupts()
     try:
-        old = signal.signal(signal.SIGINT, intr.handler)
+        old = {s: signal.signal(s, intr.handler) for s in (signal.SIGINT, signal.SIGTERM)}
     except ValueError:
         yield intr
         return
     try:
         yield intr
     finally:
-        signal.signal(signal.SIGINT, old)
+        for s, h in old.items():
+            signal.signal(s, h)

@@ -29,10 +29,35 @@ import os
 
 def _init_worker():
     """One numba thread, and no automatic sampler progress bar: several processes' bars would
-    overwrite each other's line (infer.sampler reads FRICTIONUQ_PROGRESS; this process only)."""
+    overwrite each other's line (infer.sampler reads FRICTIONUQ_PROGRESS; this process only).
+    Ctrl-C is the parent's to handle: a worker ignores SIGINT (a terminal sends it to the whole
+    process group; an idle worker printed a KeyboardInterrupt traceback), and the parent
+    terminates its workers when it is interrupted (Workers.__exit__)."""
+    import signal
     import numba
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     numba.set_num_threads(1)
     os.environ["FRICTIONUQ_PROGRESS"] = "0"
+
+
+class _sigint_ignored:
+    """SIGINT ignored for the block (on the main thread; elsewhere a no-op): processes started
+    in it inherit SIG_IGN, and Python leaves an ignored SIGINT ignored at start-up, so a Ctrl-C
+    while a worker imports cannot print its traceback."""
+
+    def __enter__(self):
+        import signal
+        try:
+            self.old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        except ValueError:
+            self.old = None
+        return self
+
+    def __exit__(self, *exc):
+        import signal
+        if self.old is not None:
+            signal.signal(signal.SIGINT, self.old)
+        return False
 
 
 def stderr_log(msg: str) -> None:
@@ -60,21 +85,39 @@ class Workers:
         items = list(items)
         if self.jobs == 1 or len(items) < 2:
             return [fn(x) for x in items]
+        from concurrent.futures import FIRST_EXCEPTION, wait
+        from .interrupts import interrupts
         if self._pool is None:
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
             self._pool = ProcessPoolExecutor(self.jobs, mp_context=multiprocessing.get_context("spawn"),
                                              initializer=_init_worker)
-        return list(self._pool.map(fn, items))
+        with _sigint_ignored():      # the workers start (in submit) ignoring Ctrl-C from birth
+            futures = [self._pool.submit(fn, x) for x in items]
+        # wait in short slices, so that a Ctrl-C or SIGTERM the pool's internals swallowed (one
+        # landing in a finaliser) still stops the map at once: interrupts() notes it, check()
+        # raises it, and the caller's `with Workers` terminates the processes
+        with interrupts() as intr:
+            while wait(futures, timeout=0.5, return_when=FIRST_EXCEPTION).not_done:
+                intr.check()
+                if any(f.done() and f.exception() is not None for f in futures):
+                    break
+            intr.check()
+        return [f.result() for f in futures]
 
-    def close(self) -> None:
+    def close(self, terminate: bool = False) -> None:
+        """Shut the processes down: after their running tasks, or at once (terminate: an
+        interrupted or failed parent does not wait for work it will not use)."""
         if self._pool is not None:
+            if terminate:
+                for p in list(getattr(self._pool, "_processes", {}).values()):
+                    p.terminate()
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
 
     def __enter__(self):
         return self
 
-    def __exit__(self, *exc):
-        self.close()
+    def __exit__(self, exc_type, *exc):
+        self.close(terminate=exc_type is not None and issubclass(exc_type, KeyboardInterrupt))
         return False

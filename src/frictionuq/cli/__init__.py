@@ -36,6 +36,7 @@ def main(argv=None) -> int:
     warnings.filterwarnings("ignore", category=ResultWarning)
     parser = build_parser()
     args = parser.parse_args(_join_dash_values(list(sys.argv[1:] if argv is None else argv)))
+    restore = _terminate_as_interrupt()
     try:
         code = args.func(args)
     except BrokenPipeError:           # output piped into `head` etc.: stop quietly
@@ -55,5 +56,23 @@ def main(argv=None) -> int:
         msg = " ".join(str(e).split())
         print(f"frictionuq: error: {msg}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    finally:
+        restore()
     return int(code or 0)
+
+
+def _terminate_as_interrupt():
+    """SIGTERM (`kill`, `timeout`, a batch scheduler) stops a command as Ctrl-C does: the
+    temporary output folders are removed and a fit keeps its stored steps (before, a terminated
+    command left its `.NAME.*.tmp` folder behind). Returns the function restoring the old
+    handler (main is also called from tests and notebooks, off the main thread too)."""
+    import signal
+
+    def handler(signum, frame):
+        raise KeyboardInterrupt
+    try:
+        old = signal.signal(signal.SIGTERM, handler)
+    except ValueError:           # not the main thread: signals cannot be set here
+        return lambda: None
+    return lambda: signal.signal(signal.SIGTERM, old)
 

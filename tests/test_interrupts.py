@@ -1,0 +1,69 @@
+"""Stopping a command: Ctrl-C at a terminal (SIGINT to the whole process group, worker processes
+included) and SIGTERM (`kill`, `timeout`, a batch scheduler) give the CLI's one line, no
+traceback from any process, and leave no temporary output folder."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.slow
+TWIN = str(Path(__file__).resolve().parents[1] / "data" / "brfd-twin")
+LINE = "frictionuq: interrupted; finished outputs are kept, and the same command"
+
+
+def _stop_when(cmd, marker: str, send, cwd):
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
+                            cwd=cwd, start_new_session=True)
+    for line in proc.stderr:
+        if marker in line:
+            send(proc)
+            break
+    rest = proc.stderr.read()
+    return proc.wait(timeout=120), rest
+
+
+def test_ctrl_c_with_worker_processes_is_one_line(tmp_path):
+    """compare --jobs 2: SIGINT to the process group while the two workers fit. Before, each
+    worker printed its own KeyboardInterrupt traceback (an idle one from call_queue.get) before
+    the CLI's line, and a busy one could only stop by itself; now the workers ignore SIGINT and
+    the interrupted parent terminates them."""
+    cmd = [sys.executable, "-m", "frictionuq.cli", "compare", TWIN, "--out", "cmp", "--test",
+           "h-35N-0.5Hz", "--test", "h-35N-0.1Hz", "--max-steps", "100000", "--jobs", "2"]
+    code, rest = _stop_when(cmd, "fits in 2 processes", lambda p: os.killpg(p.pid, signal.SIGINT),
+                            tmp_path)
+    assert code == 130, rest
+    assert "Traceback" not in rest and "KeyboardInterrupt" not in rest, rest
+    assert rest.strip().splitlines()[-1].startswith(LINE), rest
+    assert sorted(p.name for p in tmp_path.iterdir()) == [], list(tmp_path.iterdir())
+
+
+def test_sigterm_stops_a_fit_as_ctrl_c_does(tmp_path):
+    """SIGTERM once the stored run is under way: exit 130, the one line, no traceback; the fit
+    keeps its stored steps (the same command resumes); before, the process died at once and a
+    command writing its output folder at the end left its .NAME.*.tmp folder behind."""
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "frictionuq.cli", "fit", TWIN, "--out", str(out), "--test",
+           "h-35N-0.5Hz", "--max-steps", "100000"]
+    code, rest = _stop_when(cmd, ": step ", lambda p: p.send_signal(signal.SIGTERM), tmp_path)
+    assert code == 130, rest
+    assert "Traceback" not in rest and rest.strip().splitlines()[-1].startswith(LINE), rest
+    again = subprocess.run(cmd[:-1] + ["10"], capture_output=True, text=True, timeout=300)
+    assert "resuming from stored step" in again.stderr, again.stderr
+
+
+def test_sigterm_leaves_no_temporary_output_folder(tmp_path):
+    """validate writes its folder whole at the end: stopped by SIGTERM while it predicts, it
+    leaves neither the folder nor its temporary twin."""
+    from frictionuq.cli import main
+    fit = tmp_path / "fit"
+    assert main(["fit", TWIN, "--out", str(fit), "--test", "h-35N-0.5Hz", "--max-steps", "50"]) in (0, 1)
+    cmd = [sys.executable, "-m", "frictionuq.cli", "validate", str(fit), TWIN, "--test",
+           "h-35N-0.1Hz", "--test", "h-35N-0.2Hz", "--out", "val", "--draws", "400"]
+    code, rest = _stop_when(cmd, "predicting", lambda p: p.send_signal(signal.SIGTERM), tmp_path)
+    assert code == 130, rest
+    assert not [p.name for p in tmp_path.iterdir() if "val" in p.name], list(tmp_path.iterdir())
