@@ -300,3 +300,33 @@ def test_fit_notes_priors_of_parameters_its_model_does_not_have(tmp_path, monkey
                    "--prior", "fc_fwd=uniform:1:1e5"])
     assert ("note: --prior k2: not a parameter of the lugre model: ignored"
             in capsys.readouterr().err)
+
+
+def test_discover_says_when_its_refit_did_not_converge(tmp_path, monkeypatch, capsys):
+    """A refit stopped at its step cap unconverged: the command says so and exits 1 (as fit and
+    compare do), and the page warns above the intervals (before: they were printed and shown as
+    any other, exit 0)."""
+    import importlib
+    import json
+    out = tmp_path / "out"
+    doc = {"package_version": "0.1.0", "campaign": "c", "seed": 1, "config": {},
+           "named_effect": "reversal_hump", "named_effects": ["reversal_hump"], "reason": "test",
+           "rounds": [], "candidates": [], "rmse_before": 30.0, "rmse_after": 20.0,
+           "noise_scale": 20.0, "decision_rule": "rule", "seconds": 1.0,
+           "seconds_by_stage": {"screening": 1.0, "refit": 0.0, "diagnostics": 0.0},
+           "refit": [{"id": "applied-1200psi", "converged": False, "rmse": 20.0,
+                      "effects": ["reversal_hump"]}],
+           "effect_parameters": {"a_hump": {"mean": 0.45, "sd": 0.01, "q2.5": 0.44, "q97.5": 0.46,
+                                            "unit": "1"}}}
+
+    def fake(campaign, out_dir, cfg, **kw):
+        Path(out_dir).mkdir()
+        (Path(out_dir) / "discrepancy.json").write_text(json.dumps(doc))
+        return doc
+    monkeypatch.setattr(importlib.import_module("frictionuq.discrepancy.discover"), "discover", fake)
+    assert main(["discover", TWIN, "--out", str(out)]) == 1
+    printed = capsys.readouterr().out
+    assert "not converged (R-hat > 1.01 or ESS < 400 for some parameter): the refit of " \
+           "applied-1200psi" in printed
+    page = (out / "report.html").read_text()
+    assert "The refit did NOT converge (applied-1200psi" in page

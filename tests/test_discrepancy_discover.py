@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import re
+from pathlib import Path
 
 import pytest
 
@@ -44,6 +45,34 @@ def test_cli_discover_refuses_bad_input(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "no-such-campaign" in err, err
     assert not (tmp_path / "out" / "discrepancy.json").exists()
+
+
+@pytest.mark.parametrize("command", ["discover", "predict", "validate", "ingest"])
+def test_an_earlier_output_holding_a_users_file_is_not_replaced(tmp_path, capsys, command):
+    """Rerunning into an earlier output folder replaces it whole; one that also holds a file the
+    user put there is refused before any work, the file kept (before: deleted without a word)."""
+    from frictionuq.cli import main
+    twin = str(Path(__file__).resolve().parents[1] / "data" / "brfd-twin")
+    out = tmp_path / "out"
+    out.mkdir()
+    marker = {"discover": "discrepancy.json", "predict": "prediction.json",
+              "validate": "validation.json", "ingest": "manifest.json"}[command]
+    (out / marker).write_text("{}")
+    (out / "notes.txt").write_text("mine")
+    argv = {"discover": ["discover", twin, "--out", str(out)],
+            "predict": ["predict", str(tmp_path), "--harmonic", "0.01,0.5", "--applied", "1",
+                        "--out", str(out)],
+            "validate": ["validate", str(tmp_path), twin, "--test", "h-35N-0.5Hz", "--out", str(out)],
+            "ingest": ["ingest", twin, "--out", str(out)]}[command]
+    if command in ("predict", "validate"):          # a fit folder to read: refused before it
+        (tmp_path / "summary.json").write_text(json.dumps(
+            {"campaign": "brfd-twin", "fits": [{"id": "applied-35N", "applied": 35.0,
+                                                "tests": ["h-35N-0.5Hz"], "converged": True}]}))
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert "that also holds notes.txt, which frictionuq did not write" in err, err
+    assert (out / "notes.txt").read_text() == "mine"
 
 
 @pytest.mark.slow
@@ -140,3 +169,29 @@ def test_discover_replaces_its_output_folder_as_a_whole(tmp_path, monkeypatch):
     assert json.loads((out / "discrepancy.json").read_text()) == {"run": "new"}
     assert (out / "refit").is_dir()
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+def test_the_library_takes_the_configs_seed_and_a_campaign_object(tmp_path, monkeypatch):
+    """discover(..., FitConfig(seed=5)) runs with seed 5 (before: the keyword's default 1 won
+    silently); two different seeds are refused; a loaded Campaign is accepted as fit_campaign
+    accepts one (before: a TypeError from pathlib). The work itself is stubbed."""
+    from frictionuq.campaign import load_campaign
+    from frictionuq.discrepancy import discover as D
+    from frictionuq.errors import InputError
+    from frictionuq.infer.fit import FitConfig
+    seen = {}
+
+    def fake_run(campaign_path, out_dir, cfg, seed, *rest):
+        seen.update(path=campaign_path, seed=seed, cfg_seed=cfg.seed, camp=rest[-1])
+        return {}
+    monkeypatch.setattr(D, "_run", fake_run)
+    twin = Path(__file__).resolve().parents[1] / "data" / "brfd-twin"
+    D.discover(str(twin), tmp_path / "a", FitConfig(seed=5))
+    assert seen["seed"] == 5 and seen["cfg_seed"] == 5
+    D.discover(str(twin), tmp_path / "b", FitConfig(), seed=7)
+    assert seen["seed"] == 7
+    with pytest.raises(InputError, match="two seeds, seed=7 and config.seed=5"):
+        D.discover(str(twin), tmp_path / "c", FitConfig(seed=5), seed=7)
+    camp = load_campaign(twin)
+    D.discover(camp, tmp_path / "d")
+    assert seen["camp"] is camp and Path(seen["path"]) == twin and seen["seed"] == 1

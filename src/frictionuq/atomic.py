@@ -127,10 +127,12 @@ def output_dir(path):
 
 
 def check_replaceable(source: Path | None, out: Path, marker: str, source_what: str, out_what: str,
-                      is_previous=None) -> None:
+                      is_previous=None, owned=None) -> None:
     """Refuse an output folder that `output_dir` must not replace: the source folder itself (or
     one holding it), a file, or a non-empty folder that is not a previous output (recognised by
-    its `marker` file, and `is_previous(folder)` when given)."""
+    its `marker` file, and `is_previous(folder)` when given); with `owned` (name patterns of
+    what the command writes there), also a previous output holding anything else (a file the
+    user added would be lost with the folder)."""
     from .errors import InputError
     out = Path(out)
     if source is not None:
@@ -144,3 +146,12 @@ def check_replaceable(source: Path | None, out: Path, marker: str, source_what: 
         if any(out.iterdir()) and not previous:
             raise InputError(f"--out {out}: exists, is not empty and is not {out_what}; "
                              "choose a new folder (it would be replaced)")
+        if previous and owned:
+            from fnmatch import fnmatch
+            foreign = sorted(p.name for p in out.iterdir()
+                             if not any(fnmatch(p.name, pat) for pat in owned))
+            if foreign:
+                raise InputError(f"--out {out}: {out_what} that also holds {', '.join(foreign[:3])}"
+                                 f"{' ...' if len(foreign) > 3 else ''}, which frictionuq did not "
+                                 "write and would delete with the folder: move it out or choose "
+                                 "a new folder")

@@ -47,7 +47,8 @@ def ingest(campaign_dir, out) -> dict:
     camp = load_campaign(camp_path)
     if camp.ingested:
         raise InputError(f"{camp_path}: already an ingested (SI) folder; nothing to ingest")
-    atomic.check_replaceable(camp_path, out, "manifest.json", "campaign", "an ingested campaign")
+    atomic.check_replaceable(camp_path, out, "manifest.json", "campaign", "an ingested campaign",
+                             owned=("manifest.json", "tests"))
     from .units import SI
     manifest = {
         "format": FORMAT, "package_version": __version__, "environment": environment(),

@@ -313,7 +313,8 @@ def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied
         raise InputError("clean_input (--clean-input) describes an input CSV; a harmonic is always clean")
     check_seed(seed, "predict")
     summary = load_summary(fit_dir)
-    atomic.check_replaceable(fit_dir, out_dir, "prediction.json", "fit", "a prediction folder")
+    atomic.check_replaceable(fit_dir, out_dir, "prediction.json", "fit", "a prediction folder",
+                             owned=("prediction.json", "bands.csv", "cycles.csv"))
     unit, unit_src = (applied_unit, "given") if applied_unit else campaign_applied_unit(fit_dir, summary)
     try:
         U.factor("applied", unit)

@@ -124,7 +124,8 @@ def validate(fit_dir, campaign_path, test_ids, out_dir, *, n_draws: int = 400, s
         raise InputError(f"--test {twice[0]}: given twice (each held-out test is scored once)")
     out = Path(out_dir)
     # the folder is written whole (a bad test later in the list leaves nothing half-written)
-    atomic.check_replaceable(fit_dir, out, "validation.json", "fit", "a validation folder")
+    atomic.check_replaceable(fit_dir, out, "validation.json", "fit", "a validation folder",
+                             owned=("validation.json", "*.bands.csv", "*.png"))
     results, behind = [], []
     with atomic.output_dir(out) as tmp:
         unit = camp.units.get("applied", "N")

@@ -214,6 +214,11 @@ def _cmd_discover(a):
     print(f"time: {d['seconds']:.0f} s (screening {st['screening']:.0f} s, refit {st['refit']:.0f} s, "
           f"diagnostics {st['diagnostics']:.0f} s)")
     print(f"wrote {a.out}/discrepancy.json and {page}")
+    bad = [r["id"] for r in d.get("refit") or [] if not r["converged"]]
+    if bad:
+        print(f"not converged (R-hat > 1.01 or ESS < 400 for some parameter): the refit of "
+              f"{', '.join(bad)}; its intervals are indicative only (--max-steps runs it longer)")
+        return 1
 
 
 def _cmd_run(a):

@@ -149,7 +149,7 @@ def _screen_rounds(specs, cfg, seed, effects, extra_effects, max_effects, log,
     return rounds
 
 
-def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: int = 1,
+def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: int | None = None,
              effects=None, extra_effects=(), refit: bool = True, diagnostics: bool = True,
              max_effects: int = 1, jobs: int = 1, check_seeds=(), log=None) -> dict:
     """Run the workflow on a campaign; returns (and writes) the discrepancy document.
@@ -166,8 +166,26 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
     check_seeds: seeds to screen the campaign again with (seedcheck.py): `seed_check` in the
     document says whether each names the same effects.
 
+    seed: default config.seed (1 without a config); given beside a config with another seed
+    than the default, the two must agree.
+
+    campaign_path: a campaign folder, an ingested folder or a Campaign (checked by
+    campaign.check_campaign; its records are then read from it, not from its folder). The
+    report page is the report layer's: frictionuq.report.render_discrepancy_page(out_dir), as
+    the CLI does.
+
     Decimated records are simulated as the config says (raw rate by default, as the fits)."""
     log = log or (lambda m: None)
+    from ..campaign import Campaign, check_campaign
+    camp = None
+    if isinstance(campaign_path, Campaign):
+        check_campaign(campaign_path)
+        camp, campaign_path = campaign_path, campaign_path.path
+    if seed is None:
+        seed = config.seed if config is not None else FitConfig().seed
+    elif config is not None and config.seed not in (seed, FitConfig().seed):
+        raise InputError(f"discover: two seeds, seed={seed!r} and config.seed={config.seed!r}; "
+                         "give one")
     check_seed(seed, "discover")
     cfg = replace(config or FitConfig(), seed=seed)  # recorded in discrepancy.json
     if cfg.effects:
@@ -208,21 +226,22 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
     # the output folder: a new one, or a previous run's, replaced as a whole once this run is
     # complete (no earlier refit/ or figure left beside the new document; nothing lost on failure)
     atomic.check_replaceable(campaign_path, Path(out_dir), "discrepancy.json", "campaign",
-                             "a `frictionuq discover` output folder")
+                             "a `frictionuq discover` output folder",
+                             owned=("discrepancy.json", "report.html", "*.png", "refit"))
     with Workers(jobs) as workers, atomic.output_dir(out_dir) as tmp:
         return _run(campaign_path, tmp, cfg, seed, effects, extra_effects, refit, diagnostics,
-                    max_effects, check_seeds, log, workers)
+                    max_effects, check_seeds, log, workers, camp)
 
 
 def _run(campaign_path, out_dir, cfg, seed, effects, extra_effects, refit, diagnostics,
-         max_effects, check_seeds, log, workers) -> dict:
+         max_effects, check_seeds, log, workers, camp=None) -> dict:
     """discover's work once its arguments are checked: the screening's and the gap's tasks on the
     workers' processes (kept open from the first round to the last figure)."""
     from .. import __version__
     from .. import params as P
     from ..campaign import load_campaign
     t0 = time.perf_counter()
-    camp = load_campaign(campaign_path)
+    camp = camp if camp is not None else load_campaign(campaign_path)
     out = Path(out_dir)
     specs = plan(camp, "applied", cfg)
     rounds = _screen_rounds(specs, cfg, seed, effects, extra_effects, max_effects, log, workers)

@@ -61,6 +61,12 @@ def build(ctx, folder=None) -> list[dict]:
     for r in d.get("rounds", [])[1:]:
         out.append(_candidates(r["candidates"], f"round {r['round']}: candidates against 3-stage + "
                                f"{' + '.join(r['baseline_effects'])}, ranked"))
+    unconverged = [r["id"] for r in d.get("refit") or [] if not r.get("converged")]
+    if unconverged:
+        out.append(B.warn(f"The refit did NOT converge ({', '.join(unconverged)}: R-hat above "
+                          "1.01 or ESS below 400 for some parameter at the step cap): the "
+                          "intervals below, and the RMSE after, are indicative only; run it "
+                          "longer (--max-steps)."))
     if d.get("effect_parameters"):
         rows = []
         for n, s in d["effect_parameters"].items():
