@@ -60,3 +60,39 @@ def test_sampler_config_refuses_unusable_settings(field, value):
 def test_sampler_config_accepts_the_defaults_and_the_optional_nones():
     SamplerConfig()
     SamplerConfig(nwalkers=40, de_gamma=None, thin_output=None, progress=False, n_random_starts=0)
+
+
+@pytest.mark.parametrize("argv, fragment", [
+    (["discover", TWIN, "--out", ""], "--out is empty; give the output folder's path"),
+    (["discover", TWIN, "--out", "o", "--drive-lowpass", "-3"],
+     "argument --drive-lowpass: takes 'auto', 'off' or a multiple > 0 (e.g. 20), got '-3'"),
+    (["discover", TWIN, "--out", "o", "--extra-effect", "thermal_fade"],
+     "extra effect 'thermal_fade' is in the spec's library, which is screened already"),
+    (["fit", TWIN, "--out", "o", "--prior", "b_ch=uniform:1:0"],
+     "need 0 <= lower < upper <= 1 (dimensionless), got [1, 0]"),
+])
+def test_discover_trial_messages(tmp_path, monkeypatch, capsys, argv, fragment):
+    """Messages a new user's trial of discover found unclear (2026-12-05)."""
+    monkeypatch.chdir(tmp_path)
+    try:
+        code = main(argv)
+    except SystemExit as e:         # the parser's own refusal (an option's type)
+        code = e.code
+    assert code == 2
+    err = capsys.readouterr().err
+    assert fragment in err and "Traceback" not in err, err
+    assert not (tmp_path / "o").exists()
+
+
+def test_discover_notes_options_that_do_nothing(capsys):
+    from frictionuq.cli.commands import _discover_notes, discover_config
+    from frictionuq.cli.options import build_parser
+    a = build_parser().parse_args(["discover", "c", "--out", "o", "--prior", "b_ch=uniform:0:1",
+                                   "--no-refit", "--max-steps", "100", "--prior", "kappa=0.2"])
+    assert _discover_notes(a, discover_config(a)) == [
+        "--prior b_ch: its effect chatter is not screened (--extra-effect chatter screens it); "
+        "the prior does nothing",
+        "--max-steps: a setting of the refit's sampler, and --no-refit runs no refit: ignored"]
+    a = build_parser().parse_args(["discover", "c", "--out", "o", "--prior", "b_ch=0.5",
+                                   "--extra-effect", "chatter"])
+    assert _discover_notes(a, discover_config(a)) == []

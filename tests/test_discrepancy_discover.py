@@ -195,3 +195,21 @@ def test_the_library_takes_the_configs_seed_and_a_campaign_object(tmp_path, monk
     camp = load_campaign(twin)
     D.discover(camp, tmp_path / "d")
     assert seen["camp"] is camp and Path(seen["path"]) == twin and seen["seed"] == 1
+
+
+def test_a_name_that_makes_a_test_worse_is_said():
+    """The real 25 lb pair of arts-d1 (a new user's trial, 2026-12-05): eccentricity named while
+    the 1 Hz test's RMSE rose; the console and the page say so (the diagnostics' RMSE at the MAP
+    points), and point to --check-seed when no seed check was run."""
+    from frictionuq.discrepancy.gap import tests_made_worse, worse_sentence
+    diag = [{"test": "a", "model": "baseline", "rmse": 1034.1},
+            {"test": "b", "model": "baseline", "rmse": 1013.1},
+            {"test": "a", "model": "with eccentricity", "rmse": 1001.9},
+            {"test": "b", "model": "with eccentricity", "rmse": 1023.3}]
+    doc = {"named_effect": "eccentricity", "named_effects": ["eccentricity"], "diagnostics": diag}
+    assert tests_made_worse(doc) == [{"test": "b", "before": 1013.1, "after": 1023.3}]
+    assert worse_sentence(doc) == ("with eccentricity the RMSE of 1 test rises (b 1013 -> 1023 N): "
+                                   "the name rests on the other tests; `--check-seed N` screens "
+                                   "again with another seed and says whether it names the same")
+    assert worse_sentence(dict(doc, seed_check={"agree": False})).endswith("rests on the other tests")
+    assert worse_sentence(dict(doc, diagnostics=diag[:3])) is None

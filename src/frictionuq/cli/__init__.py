@@ -36,6 +36,9 @@ def main(argv=None) -> int:
     warnings.filterwarnings("ignore", category=ResultWarning)
     parser = build_parser()
     args = parser.parse_args(_join_dash_values(list(sys.argv[1:] if argv is None else argv)))
+    if getattr(args, "out", None) == "":
+        print("frictionuq: error: --out is empty; give the output folder's path", file=sys.stderr)
+        return EXIT_BAD_INPUT
     restore = _terminate_as_interrupt()
     try:
         code = args.func(args)

@@ -176,9 +176,29 @@ def discover_config(a):
                      reversal=a.reversal, force_offset=a.force_offset)
 
 
+def _discover_notes(a, cfg) -> list[str]:
+    """What of the options will do nothing: a prior of an effect no candidate screens, sampler
+    options with --no-refit."""
+    from .. import params as P
+    screened = [e for e in P.EFFECTS if e not in P.BEYOND_SPEC or e in (a.extra_effect or ())]
+    out = [f"--prior {n}: its effect {P.PARAMS[n].effect} is not screened "
+           + (f"(--extra-effect {P.PARAMS[n].effect} screens it)" if P.PARAMS[n].effect in P.BEYOND_SPEC
+              else "") + "; the prior does nothing"
+           for n in cfg.priors if P.PARAMS[n].effect is not None and P.PARAMS[n].effect not in screened]
+    if a.no_refit:
+        given = [o for o, v in (("--max-steps", a.max_steps), ("--stored-run", a.stored_run),
+                                ("--temperatures", a.temperatures)) if v is not None]
+        if given:
+            out.append(f"{', '.join(given)}: {'settings' if len(given) > 1 else 'a setting'} of "
+                       "the refit's sampler, and --no-refit runs no refit: ignored")
+    return out
+
+
 def _cmd_discover(a):
     from ..discrepancy.discover import discover
     cfg = discover_config(a)
+    for n in _discover_notes(a, cfg):
+        print(f"note: {n}", file=sys.stderr)
     d = discover(a.campaign, a.out, cfg, seed=a.seed, refit=not a.no_refit,
                  extra_effects=tuple(a.extra_effect or ()), max_effects=a.max_effects,
                  jobs=a.jobs, check_seeds=tuple(a.check_seed or ()),
@@ -192,13 +212,17 @@ def _cmd_discover(a):
             gain, se = f"{c['elpd_gain']:18.1f}", f"{c['elpd_gain_se']:10.1f}"
         print(f"{c['effect']:<20}{gain}{se}{c['map_gain']:17.1f}{c['min_gain']:14.1f}"
               f"{c['rmse_after']:16.4g}")
-    print(f"named effect: {d['named_effect']} ({d['reason']})")
+    from ..discrepancy.rule import shown_reason
+    print(f"named effect: {d['named_effect']} ({shown_reason(d['named_effect'], d['reason'])})")
     for r in d["rounds"][1:]:
         print(f"round {r['round']} (against 3-stage + {' + '.join(r['baseline_effects'])}): "
-              f"named {r['named_effect']} ({r['reason']})")
+              f"named {r['named_effect']} ({shown_reason(r['named_effect'], r['reason'])})")
     if d.get("seed_check"):
         from ..discrepancy.seedcheck import sentence
         print(sentence(d["seed_check"]))
+    from ..discrepancy.gap import worse_sentence
+    if d.get("named_effect", "none") != "none" and (w := worse_sentence(d)):
+        print(f"note: {w}")
     print(f"RMSE before {d['rmse_before']:.4g} N, after {d['rmse_after']:.4g} N"
           + (f", noise scale {d['noise_scale']:.4g} N" if d["noise_scale"] else ""))
     def unit(u):                        # a dimensionless value shows no unit

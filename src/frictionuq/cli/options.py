@@ -23,7 +23,9 @@ def _add_selection(s, max_steps_help: str) -> None:
     """Seed, test selection, step cap and the stored run's design, shared by the commands that
     run fits."""
     from ..infer.sampler import STORED_RUNS
-    s.add_argument("--seed", type=_seed, default=1)
+    s.add_argument("--seed", type=_seed, default=1,
+                   help="seed of every random generator (default 1): the same seed and inputs "
+                        "give the same numbers")
     s.add_argument("--test", action="append", metavar="ID", help="only this test (repeatable)")
     s.add_argument("--kind", action="append", choices=["harmonic", "earthquake", "other"],
                    help="only tests of this kind (repeatable)")
@@ -48,10 +50,13 @@ def _lowpass_value(text: str):
     if text in ("auto", "off"):
         return text
     try:
-        return float(text)
+        v = float(text)
     except ValueError:
+        v = float("nan")
+    if not (v > 0 and v < float("inf")):
         raise argparse.ArgumentTypeError(f"takes 'auto', 'off' or a multiple > 0 (e.g. 20), "
-                                         f"got {text!r}") from None
+                                         f"got {text!r}")
+    return v
 
 
 def _add_drive_lowpass(s) -> None:
@@ -133,7 +138,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--jobs", "-j", type=int, default=1, metavar="N",
                    help="fits side by side in N processes, one numba thread each (default 1: one "
                         "fit at a time on every core); the results do not depend on it")
-    _add_selection(s, "cap on stored sampler steps")
+    _add_selection(s, "cap on stored sampler steps (default 100000: until converged)")
     s.set_defaults(func=C._cmd_fit)
 
     s = sub.add_parser("law", help="fit the force-dependence law on a `fit --by applied` folder")
@@ -197,13 +202,15 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a level's fits (each model on all tests and without each test) side by "
                         "side in N processes, one numba thread each (default 1); the results do "
                         "not depend on it")
-    _add_selection(s, "cap on stored sampler steps per fit")
+    _add_selection(s, "cap on stored sampler steps per fit (default 100000: until converged)")
     s.set_defaults(func=C._cmd_compare)
 
     s = sub.add_parser("discover", help="name the effect the model misses (screen the effect library, refit)")
     s.add_argument("campaign", help="campaign folder or ingested folder")
     s.add_argument("--out", required=True, help="output folder: discrepancy.json, report.html, figures, refit/")
-    s.add_argument("--likelihood", choices=["iid", "ar1"], default="ar1")
+    s.add_argument("--likelihood", choices=["iid", "ar1"], default="ar1",
+                   help="the residual's noise model: AR(1) (default; a friction model's residuals "
+                        "on 100-1000 Hz records are strongly autocorrelated) or independent")
     s.add_argument("--no-refit", action="store_true", help="screen and name only (no MCMC refit)")
     _add_drive_lowpass(s)
     from ..params import BEYOND_SPEC
@@ -222,7 +229,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--jobs", "-j", type=int, default=default_jobs(), metavar="N",
                    help="processes for the screening's fits (default: every core, here "
                         f"{default_jobs()}); the results do not depend on it")
-    _add_selection(s, "cap on stored sampler steps of the refit")
+    _add_selection(s, "cap on stored sampler steps of the refit (default 100000: until converged; "
+                      "a real level can take over 10 minutes)")
     s.set_defaults(func=C._cmd_discover)
 
     s = sub.add_parser("run", help="run a workflow (make-like: only what is out of date)")

@@ -213,8 +213,10 @@ def discover(campaign_path, out_dir, config: FitConfig | None = None, *, seed: i
         raise InputError(f"discover: {unknown_name('effect', unknown[0], P.EFFECTS)}")
     bad = [e for e in extra_effects if e not in P.BEYOND_SPEC]
     if bad:
-        raise InputError(f"discover: extra effect {bad[0]!r} is not an effect beyond the spec's "
-                         f"library; known: {', '.join(sorted(P.BEYOND_SPEC))}")
+        what = ("is in the spec's library, which is screened already" if bad[0] in P.EFFECTS
+                else "is not an effect")
+        raise InputError(f"discover: extra effect {bad[0]!r} {what}; --extra-effect takes the "
+                         f"effects beyond the spec: {', '.join(sorted(P.BEYOND_SPEC))}")
     noise = (set(effects or ()) | set(extra_effects)) & P.NOISE_EFFECTS
     if noise and cfg.force_offset == "per_test":
         raise InputError(f"discover: per-test force offsets cannot be screened with the noise "

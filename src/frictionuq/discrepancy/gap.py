@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import atomic
+from ..wording import count
 from ..workers import Workers
 from . import fits
 
@@ -129,3 +130,26 @@ def combined(level: str, gap: list[dict], log) -> list[dict]:
                 f"for too few blocks in their null: {', '.join(c['excluded'])})")
         out.append(c)
     return out
+
+
+def tests_made_worse(doc: dict) -> list[dict]:
+    """The tests whose RMSE rises with the named effects (discrepancy.json's diagnostics, at the
+    MAP points): [{"test", "before", "after"}] (N). A name that makes a test worse rests on the
+    others: on the real 25 lb pair of arts-d1 eccentricity was named while the 1 Hz test went
+    from 1,013 to 1,023 N, and another seed named none."""
+    base = {g["test"]: g["rmse"] for g in doc.get("diagnostics") or [] if g["model"] == "baseline"}
+    return [{"test": g["test"], "before": base[g["test"]], "after": g["rmse"]}
+            for g in doc.get("diagnostics") or []
+            if g["model"] != "baseline" and g["test"] in base and g["rmse"] > base[g["test"]]]
+
+
+def worse_sentence(doc: dict) -> str | None:
+    """One sentence on the tests made worse, or None (the console's note and the page's)."""
+    worse = tests_made_worse(doc)
+    if not worse:
+        return None
+    each = ", ".join(f"{w['test']} {w['before']:.4g} -> {w['after']:.4g} N" for w in worse)
+    check = ("" if doc.get("seed_check") else
+             "; `--check-seed N` screens again with another seed and says whether it names the same")
+    return (f"with {' + '.join(doc.get('named_effects') or [doc['named_effect']])} the RMSE of "
+            f"{count(len(worse), 'test')} rises ({each}): the name rests on the other tests{check}")

@@ -256,3 +256,9 @@ def _alternatives_note(alts: list[dict]) -> str:
     return ("; also passing the rule: " + ", ".join(
         f"{a['effect']} ({a['elpd_gain']:+.1f}, {a['behind']:.1f} nats behind)" for a in alts)
         + (f"; not decisive: {', '.join(near)} within {MIN_GAIN:g} nats" if near else ""))
+
+
+def shown_reason(named: str, reason: str) -> str:
+    """The reason without the named effect's name in front ("eccentricity: held-out gain ..."
+    reads "held-out gain ..." after "named effect: eccentricity")."""
+    return reason[len(named) + 2:] if reason.startswith(f"{named}: ") else reason

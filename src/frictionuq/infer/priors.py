@@ -153,6 +153,12 @@ def default_priors(s: RecordScales, model: str = "three_stage", effects: Iterabl
     return pr
 
 
+def _unit(name: str) -> str:
+    """A parameter's unit as a message shows it ("1" is dimensionless)."""
+    u = P.PARAMS[name].unit
+    return "dimensionless" if u == "1" else u
+
+
 def effect_priors(effect: str, s: RecordScales) -> dict[str, Prior]:
     """Realistic priors of one effect's parameters (registry: EFFECT_PRIORS)."""
     if effect not in EFFECT_PRIORS:
@@ -226,14 +232,14 @@ def apply_overrides(priors: Mapping[str, Prior], overrides: Mapping | None, sour
             # the Prior's own defaults (mu 0, sd 1) are no one's choice: a normal prior on a
             # stiffness of 1e5 N/m with sd 1 N/m fixes it (a new user's trial, 2026-12-05)
             raise InputError(f"{source}: prior of {name!r}: a normal prior needs both mu and sd "
-                             f"({P.PARAMS[name].unit})")
+                             f"({_unit(name)})")
         new = replace(base, ratio_of=None, **{k: (float(v) if k != "dist" else v) for k, v in spec.items()})
         if new.dist not in DISTS:
             raise InputError(f"{source}: prior of {name!r}: unknown dist {new.dist!r}; use one of {DISTS}")
         lo_b, hi_b = P.PARAMS[name].lower, P.PARAMS[name].upper
         if not (lo_b <= new.lower < new.upper <= hi_b):
             raise InputError(f"{source}: prior of {name!r}: need {lo_b:g} <= lower < upper <= {hi_b:g} "
-                             f"({P.PARAMS[name].unit}), got [{new.lower:g}, {new.upper:g}]")
+                             f"({_unit(name)}), got [{new.lower:g}, {new.upper:g}]")
         if new.dist == "loguniform" and new.lower <= 0:
             raise InputError(f"{source}: prior of {name!r}: a log-uniform prior needs lower > 0")
         if new.dist == "normal" and not new.sd > 0:

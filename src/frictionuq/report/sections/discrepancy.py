@@ -8,9 +8,15 @@ import json
 from .. import blocks as B
 from ...params import NOISE_EFFECTS
 from ...discrepancy import seedcheck
+from ...discrepancy.gap import worse_sentence
+from ...discrepancy.rule import shown_reason
 from ... import units
 from ..tables import num, scaled, table
 from ...wording import count
+
+
+def _capital(s: str) -> str:
+    return s[:1].upper() + s[1:]
 
 
 def build(ctx, folder=None) -> list[dict]:
@@ -23,13 +29,16 @@ def build(ctx, folder=None) -> list[dict]:
                        "false); `frictionuq discover CAMPAIGN --out DIR` runs it on its own.")]
     d = json.loads(p.read_text())
     named = d.get("named_effects", [] if d["named_effect"] == "none" else [d["named_effect"]])
-    out = [B.para(f"Named effect: {d['named_effect']}. {d['reason']}.")]
+    out = [B.para(f"Named effect: {d['named_effect']}. "
+                  f"{_capital(shown_reason(d['named_effect'], d['reason']))}.")]
     for r in d.get("rounds", [])[1:]:       # forward selection (discover --max-effects)
         out.append(B.para(f"Round {r['round']}, against the 3-stage model with "
                           f"{' + '.join(r['baseline_effects'])}: named {r['named_effect']} "
-                          f"({r['reason']})."))
+                          f"({shown_reason(r['named_effect'], r['reason'])})."))
     if d.get("seed_check"):          # discover --check-seed
         out.append(B.para(seedcheck.sentence(d["seed_check"])))
+    if d["named_effect"] != "none" and (w := worse_sentence(d)):
+        out.append(B.warn(_capital(w) + "."))
     after = f" (with {' + '.join(named)})" if len(named) > 1 else ""
     out.append(B.para(f"RMSE before (baseline 3-stage, at its MAP): {num(d['rmse_before'])} N; "
                       f"after{after}: {num(d['rmse_after'])} N"
