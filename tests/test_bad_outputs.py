@@ -286,3 +286,18 @@ def test_compare_refuses_a_file_or_the_campaign_as_out_before_any_fit(work, caps
     finally:
         C.compare_level = real
     assert calls == [] and (work / "afile").read_text() == "mine\n"
+
+
+def test_a_failed_output_folder_removes_the_parents_it_made(tmp_path):
+    """output_dir makes the missing parents of its folder; a run that fails (or is interrupted)
+    removes those it made, innermost first, as long as they are empty, and leaves the rest."""
+    import pytest
+    from frictionuq import atomic
+    (tmp_path / "kept").mkdir()
+    target = tmp_path / "kept" / "new1" / "new2" / "out"
+    with pytest.raises(KeyboardInterrupt):
+        with atomic.output_dir(target) as tmp:
+            (tmp / "half.json").write_text("{")
+            raise KeyboardInterrupt
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["kept"]
+    assert list((tmp_path / "kept").iterdir()) == []

@@ -100,6 +100,7 @@ def output_dir(path):
                          "choose a new folder")
     if path.exists() and not path.is_dir():
         raise InputError(f"cannot replace {path} by a folder: it is a file")
+    made = [up for up in path.parents if not up.exists()]     # the parents this call makes
     writable_parent(path)
     try:
         tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
@@ -110,6 +111,11 @@ def output_dir(path):
         yield tmp
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
+        for up in made:                       # innermost first; only if still empty
+            try:
+                up.rmdir()
+            except OSError:
+                break
         raise
     old = None
     try:
