@@ -248,9 +248,13 @@ def test_plan_and_cli_refuse_a_bad_multiple(fit_dir, tmp_path, capsys):
         main(["fit", str(root / "camp"), "--out", str(out), "--drive-lowpass", "on"])
     err = capsys.readouterr().err
     assert ex.value.code == 2 and err.count("\n") == 1 and "--drive-lowpass" in err and "'auto', 'off'" in err
+    # a number <= 0 or not finite: refused by the option's own type, naming it (before
+    # 2026-12-05 by FitConfig, as "fit config: drive_lowpass ...")
     for cmd, bad in (("fit", "-3"), ("fit", "nan"), ("discover", "0"), ("compare", "-1")):
-        code = main([cmd, str(root / "camp"), "--out", str(out), "--drive-lowpass", bad])
+        with pytest.raises(SystemExit) as ex:
+            main([cmd, str(root / "camp"), "--out", str(out), "--drive-lowpass", bad])
         err = capsys.readouterr().err
-        assert code == 2, err
-        assert err.count("\n") == 1 and "drive_lowpass" in err, err
+        assert ex.value.code == 2, err
+        assert err.count("\n") == 1 and f"argument --drive-lowpass: takes 'auto', 'off' or a " \
+            f"multiple > 0 (e.g. 20), got '{bad}'" in err, err
         assert not out.exists()
