@@ -22,8 +22,8 @@ from frictionuq.infer.fit import FitConfig, fit_campaign
 from frictionuq.infer.sampler import SamplerConfig
 from frictionuq.model import simulate
 from frictionuq.draws import Draws
-from frictionuq.predict import (BAND_COLUMNS, CYCLE_COLUMNS, add_noise, cycle_bounds, cycle_table,
-                                harmonic_input, predict, write_prediction)
+from frictionuq.cycles import CYCLE_COLUMNS, cycle_bounds, cycle_table
+from frictionuq.predict import BAND_COLUMNS, add_noise, harmonic_input, predict, write_prediction
 
 TRUTH = published.brfd_params(267.0)
 OFFSET = 300.0

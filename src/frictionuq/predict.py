@@ -18,17 +18,8 @@ Given a fit output folder (`frictionuq fit`, see frictionuq.infer.fit) and an ap
 * Reversal dead band: eps = noise.default_eps(x) for a measured record (CSV input), 0 for the
   clean harmonic and for a CSV given as a clean generated drive (clean_input=True: a ground
   motion's displacement history, which the pipeline writes).
-* Cycles: the harmonic is generated as whole periods starting at x = 0 moving up, so its cycles
-  are the periods; for a record, a cycle runs from one turning point to the next turning point in
-  the same direction, the turning points being the extremes the kernel's detector finds with a
-  dead band of CYCLE_DEAD_BAND (5 %) of the record's amplitude (largest |x - median x|), or eps
-  if larger: wiggles smaller than that (micrometres on a ground motion's history) do not cut a
-  cycle. A record with fewer than 3 such turning points has no complete cycle (empty table). Energy per cycle is
-  the loop integral of F dx (trapezoid rule) of the noise-free model force. For a periodic
-  drive the loop closes and this is the energy dissipated; for an irregular record (a ground
-  motion) a "cycle" need not return to its starting displacement, and the integral is the net
-  work done on the device over it, which also contains the change of the energy stored in the
-  backlash and bristles (a short cycle can then come out slightly negative).
+* Cycles: per-cycle peak force and dissipated energy (frictionuq.cycles: how a record's cycles
+  are cut, and what the energy of an irregular record's cycle means).
 
 Everything is SI (s, m, N, J); `applied` is given in the campaign's own unit at the edges.
 """
@@ -46,13 +37,12 @@ from .environment import environment
 from .errors import InputError, check_draws, check_seed
 from .draws import LAW_SOURCE, Draws, choose_draws
 from .extrapolation import warn_about
+from .cycles import CYCLE_COLUMNS, cycle_bounds, cycle_table
 from .fitdir import campaign_applied_unit, load_summary, not_converged
 
 QUANTILES = (2.5, 25.0, 50.0, 75.0, 97.5)
 HARMONIC_CYCLES = 3
 HARMONIC_SAMPLES_PER_CYCLE = 200
-#: a record's cycles turn where the motion reverses by more than this fraction of its amplitude
-CYCLE_DEAD_BAND = 0.05
 #: an input amplitude (largest |x - median x|) above this is refused: no damper test moves a
 #: metre; it is millimetres given as metres (inputs are in SI)
 AMPLITUDE_PLAUSIBLE_M = 1.0
@@ -60,8 +50,6 @@ BAND_COLUMNS = ["time", "displacement",
                 "force_median", "force_q2.5", "force_q25", "force_q75", "force_q97.5",
                 "force_model_median", "force_model_q2.5", "force_model_q25", "force_model_q75",
                 "force_model_q97.5"]
-CYCLE_COLUMNS = ["cycle", "t_start", "t_end", "peak_force_median", "peak_force_q2.5",
-                 "peak_force_q97.5", "energy_median", "energy_q2.5", "energy_q97.5"]
 #: backlash parameters unused by the pure LuGre model (as in infer.space.Space)
 _LUGRE_UNUSED = {"k2": 0.0, "d2": 0.0, "k3": 0.0, "d3": 0.0, "w": 1e-3}
 FLOAT_FORMAT = "%.9g"
@@ -169,38 +157,6 @@ def band_table(t, x, F_noisy: np.ndarray, F_model: np.ndarray) -> pd.DataFrame:
         for i, lab in ((0, "2.5"), (1, "25"), (3, "75"), (4, "97.5")):
             cols[f"{pre}_q{lab}"] = q[i]
     return pd.DataFrame(cols, columns=BAND_COLUMNS)
-
-
-def cycle_bounds(x, eps: float = 0.0, samples_per_cycle: int | None = None) -> list[tuple[int, int]]:
-    """Sample index pairs (start, end) of the complete cycles: whole periods of a generated
-    harmonic (samples_per_cycle given), else turning point to the next turning point in the same
-    direction, the turning points being the extremes of reversals larger than CYCLE_DEAD_BAND
-    times the record's amplitude (or eps, if larger)."""
-    x = np.asarray(x, float)
-    if samples_per_cycle:
-        n = (x.size - 1) // samples_per_cycle
-        return [(c * samples_per_cycle, (c + 1) * samples_per_cycle) for c in range(n)]
-    if x.size < 3:
-        return []
-    from .noise import reversal_flags
-    band = max(float(eps), CYCLE_DEAD_BAND * float(np.max(np.abs(x - np.median(x)))))
-    turn = np.flatnonzero(reversal_flags(x, band)) - 1      # the flag sits after the extreme
-    return [(int(turn[i]), int(turn[i + 2])) for i in range(0, turn.size - 2, 2)]
-
-
-def cycle_table(t, x, F_model: np.ndarray, bounds) -> pd.DataFrame:
-    """Per cycle: peak |F| (N) and dissipated energy (J, trapezoid loop integral of F dx) of the
-    noise-free model force, median and 2.5/97.5 % over draws."""
-    t, x = np.asarray(t, float), np.asarray(x, float)
-    rows = []
-    for c, (i0, i1) in enumerate(bounds, start=1):
-        F = F_model[:, i0:i1 + 1]
-        peak = np.max(np.abs(F), axis=1)
-        energy = np.sum(0.5 * (F[:, 1:] + F[:, :-1]) * np.diff(x[i0:i1 + 1])[None, :], axis=1)
-        pq = np.percentile(peak, (50, 2.5, 97.5))
-        eq = np.percentile(energy, (50, 2.5, 97.5))
-        rows.append([c, t[i0], t[i1], *pq, *eq])
-    return pd.DataFrame(rows, columns=CYCLE_COLUMNS).astype({"cycle": int})
 
 
 @dataclass
