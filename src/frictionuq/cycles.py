@@ -36,8 +36,8 @@ def cycle_bounds(x, eps: float = 0.0, samples_per_cycle: int | None = None) -> l
         return [(c * samples_per_cycle, (c + 1) * samples_per_cycle) for c in range(n)]
     if x.size < 3:
         return []
-    from .noise import reversal_flags
-    band = max(float(eps), CYCLE_DEAD_BAND * float(np.max(np.abs(x - np.median(x)))))
+    from .noise import amplitude, reversal_flags
+    band = max(float(eps), CYCLE_DEAD_BAND * amplitude(x))
     turn = np.flatnonzero(reversal_flags(x, band)) - 1      # the flag sits after the extreme
     return [(int(turn[i]), int(turn[i + 2])) for i in range(0, turn.size - 2, 2)]
 

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from .fitdir import not_converged
+from .noise import amplitude
 
 
 #: an input whose amplitude or peak speed exceeds the fitted records' by more than this factor is
@@ -28,11 +29,11 @@ def fitted_range(fit_dir, fit_ids, t, x) -> dict:
         sc = read_json(Path(fit_dir) / fid / "fit.json", f"record of fit {fid}").get("scales") or {}
         amp, vmax = max(amp, float(sc.get("amp", 0.0))), max(vmax, float(sc.get("v_max", 0.0)))
     x = np.asarray(x, float)
-    amplitude = float(np.max(np.abs(x - np.median(x))))
+    amp_in = amplitude(x)
     speed = float(np.max(np.abs(np.gradient(x, np.asarray(t, float))))) if x.size > 1 else 0.0
-    beyond = [name for name, v, ref in (("amplitude", amplitude, amp), ("peak speed", speed, vmax))
+    beyond = [name for name, v, ref in (("amplitude", amp_in, amp), ("peak speed", speed, vmax))
               if ref > 0 and v > BEYOND_FACTOR * ref]
-    return {"amplitude_m": amplitude, "fitted_amplitude_m": amp, "peak_speed_m_s": speed,
+    return {"amplitude_m": amp_in, "fitted_amplitude_m": amp, "peak_speed_m_s": speed,
             "fitted_peak_speed_m_s": vmax, "beyond": beyond, "factor": BEYOND_FACTOR}
 
 

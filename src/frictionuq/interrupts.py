@@ -33,8 +33,8 @@ class Interrupts:
 
 @contextlib.contextmanager
 def interrupts():
-    """An Interrupts handling SIGINT for the block (off the main thread, e.g. in a Dask worker,
-    signals cannot be set: then it never notes anything)."""
+    """An Interrupts handling SIGINT and SIGTERM for the block (off the main thread, e.g. in a
+    Dask worker, signals cannot be set: then it never notes anything)."""
     import signal
     intr = Interrupts()
     try:
@@ -47,3 +47,20 @@ def interrupts():
     finally:
         for s, h in old.items():
             signal.signal(s, h)
+
+
+@contextlib.contextmanager
+def sigint_ignored():
+    """SIGINT ignored for the block (on the main thread; elsewhere a no-op): processes started in
+    it inherit SIG_IGN, and Python leaves an ignored SIGINT ignored at start-up, so a Ctrl-C
+    while a spawned worker imports cannot print its traceback (workers.Workers)."""
+    import signal
+    try:
+        old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)

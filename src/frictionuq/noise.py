@@ -35,6 +35,14 @@ ORDER = 4
 EPS_MULTIPLIER = 8.0
 
 
+def amplitude(x) -> float:
+    """A displacement record's amplitude (m): the largest |x - median x| (half the stroke of a
+    centred sine; 0 for an empty record). The priors' length scale, the extrapolation check's
+    reach, the cycles' dead band and the input plausibility check all read it."""
+    x = np.asarray(x, float)
+    return float(np.max(np.abs(x - np.median(x)))) if x.size else 0.0
+
+
 def displacement_noise_sd(x, where: str | None = None) -> float:
     """Robust estimate (m) of the standard deviation of the noise on displacement record x.
     where: what the record is ("test h1"), named in the error of a record too short for it."""

@@ -241,7 +241,8 @@ def fit_drive_lowpass(summary: dict, eps: float) -> float | None:
 def check_amplitude(x, what: str) -> None:
     """Refuse a drive whose amplitude (largest |x - median x|) is above AMPLITUDE_PLAUSIBLE_M:
     millimetres given as metres."""
-    amp = float(np.max(np.abs(x - np.median(x)))) if np.size(x) else 0.0
+    from .noise import amplitude
+    amp = amplitude(x)
     if amp > AMPLITUDE_PLAUSIBLE_M:
         raise InputError(f"{what}: the drive's amplitude is {amp:.4g} m, above "
                          f"{AMPLITUDE_PLAUSIBLE_M:g} m, which no damper test reaches: displacements "

@@ -40,26 +40,6 @@ def _init_worker():
     os.environ["FRICTIONUQ_PROGRESS"] = "0"
 
 
-class _sigint_ignored:
-    """SIGINT ignored for the block (on the main thread; elsewhere a no-op): processes started
-    in it inherit SIG_IGN, and Python leaves an ignored SIGINT ignored at start-up, so a Ctrl-C
-    while a worker imports cannot print its traceback."""
-
-    def __enter__(self):
-        import signal
-        try:
-            self.old = signal.signal(signal.SIGINT, signal.SIG_IGN)
-        except ValueError:
-            self.old = None
-        return self
-
-    def __exit__(self, *exc):
-        import signal
-        if self.old is not None:
-            signal.signal(signal.SIGINT, self.old)
-        return False
-
-
 def stderr_log(msg: str) -> None:
     """The log of a worker process whose caller logs: a line on standard error."""
     import sys
@@ -86,13 +66,13 @@ class Workers:
         if self.jobs == 1 or len(items) < 2:
             return [fn(x) for x in items]
         from concurrent.futures import FIRST_EXCEPTION, wait
-        from .interrupts import interrupts
+        from .interrupts import interrupts, sigint_ignored
         if self._pool is None:
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
             self._pool = ProcessPoolExecutor(self.jobs, mp_context=multiprocessing.get_context("spawn"),
                                              initializer=_init_worker)
-        with _sigint_ignored():      # the workers start (in submit) ignoring Ctrl-C from birth
+        with sigint_ignored():       # the workers start (in submit) ignoring Ctrl-C from birth
             futures = [self._pool.submit(fn, x) for x in items]
         # wait in short slices, so that a Ctrl-C or SIGTERM the pool's internals swallowed (one
         # landing in a finaliser) still stops the map at once: interrupts() notes it, check()

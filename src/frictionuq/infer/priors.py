@@ -31,6 +31,7 @@ import numpy as np
 
 from .. import params as P
 from ..errors import InputError, unknown
+from ..noise import amplitude
 
 DISTS = ("uniform", "loguniform", "normal")
 
@@ -88,7 +89,7 @@ def record_scales(records: Iterable) -> RecordScales:
             bwd.append(f[v < -0.3 * vm])
         d = np.diff(f, 4)
         hf.append(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(comb(8, 4)))
-        amps.append(np.max(np.abs(x - np.median(x))))
+        amps.append(amplitude(x))
         vmax.append(vm)
     ff = np.concatenate(fwd) if fwd and sum(a.size for a in fwd) else np.array([np.nan])
     fb = np.concatenate(bwd) if bwd and sum(a.size for a in bwd) else np.array([np.nan])

@@ -41,32 +41,30 @@ OUTPUT_SUFFIXES = (".json", ".csv", ".nc", ".h5", ".png")
 MAX_OUTPUT_ROWS = 300
 
 
-def _recorded_by(path, run_dir) -> str:
+def _json_doc(path):
+    """The JSON object in `path`, or None (unreadable, or not an object)."""
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    return doc if isinstance(doc, dict) else None
+
+
+def _recorded_by(path, run_dir, docs: dict) -> str:
     """What records an output file's package version, configuration and seed: the file itself
-    (a JSON with package_version; the netCDF and HDF5 files' attributes) or the JSON beside it."""
+    (a JSON with package_version; the netCDF and HDF5 files' attributes) or the JSON beside it
+    or one folder up. docs: {path: the JSON object or None} of the run folder's JSON files."""
     if path.suffix in (".nc", ".h5"):
         return "its own attributes"
-    if path.suffix == ".json":
-        try:
-            doc = json.loads(path.read_text())
-        except (OSError, ValueError):
-            return DASH
-        if isinstance(doc, dict) and "package_version" in doc:
-            seed = doc.get("seed")
-            return "itself" + ("" if seed is None else f" (seed {seed})")
-    for folder in (path.parent, path.parent.parent):      # beside it, or one folder up
-        if folder != run_dir.parent:
-            beside = sorted(p for p in folder.glob("*.json") if p != path and _has_version(p))
-            if beside:
-                return ", ".join(str(p.relative_to(run_dir)) for p in beside)
+    versioned = [p for p, d in docs.items() if d is not None and "package_version" in d]
+    if path in versioned:
+        seed = docs[path].get("seed")
+        return "itself" + ("" if seed is None else f" (seed {seed})")
+    for folder in (path.parent, path.parent.parent):
+        beside = sorted(p for p in versioned if p.parent == folder and p != path)
+        if beside:
+            return ", ".join(str(p.relative_to(run_dir)) for p in beside)
     return DASH
-
-
-def _has_version(path) -> bool:
-    try:
-        return "package_version" in json.loads(path.read_text())
-    except (OSError, ValueError, TypeError):
-        return False
 
 
 def _outputs(ctx) -> list[dict]:
@@ -78,7 +76,8 @@ def _outputs(ctx) -> list[dict]:
                    and not any(part.startswith(".") for part in p.relative_to(run).parts))
     if not files:
         return [B.note("No output files found in the run folder.")]
-    rows = [[str(p.relative_to(run)), num(p.stat().st_size / 1e3, 3), _recorded_by(p, run)]
+    docs = {p: _json_doc(p) for p in files if p.suffix == ".json"}     # each read once
+    rows = [[str(p.relative_to(run)), num(p.stat().st_size / 1e3, 3), _recorded_by(p, run, docs)]
             for p in files[:MAX_OUTPUT_ROWS]]
     more = len(files) - len(rows)
     return [B.html(table(["file (in the run folder)", "size (kB)",
