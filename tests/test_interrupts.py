@@ -42,6 +42,19 @@ def test_ctrl_c_with_worker_processes_is_one_line(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == [], list(tmp_path.iterdir())
 
 
+def test_ctrl_c_starts_no_queued_fit(tmp_path):
+    """fit --jobs 2 of three levels: the third waits in the pool's queue. Before, the worker that
+    the parent's SIGTERM stopped between two sampler steps went back to the pool's loop, took the
+    queued level and fitted it to the end (the exit came after "applied-66N: converged"); now the
+    stopped worker ends and the queued fit never starts."""
+    cmd = [sys.executable, "-m", "frictionuq.cli", "fit", TWIN, "--out", "f", "--test", "h-35N-0.5Hz",
+           "--test", "h-53N-0.5Hz", "--test", "h-66N-0.5Hz", "--max-steps", "100000", "--jobs", "2"]
+    code, rest = _stop_when(cmd, ": step ", lambda p: os.killpg(p.pid, signal.SIGINT), tmp_path)
+    assert code == 130, rest
+    assert "applied-66N" not in rest and "converged" not in rest, rest
+    assert "Traceback" not in rest and rest.strip().splitlines()[-1].startswith(LINE), rest
+
+
 def test_sigterm_stops_a_fit_as_ctrl_c_does(tmp_path):
     """SIGTERM once the stored run is under way: exit 130, the one line, no traceback; the fit
     keeps its stored steps (the same command resumes); before, the process died at once and a

@@ -216,6 +216,46 @@ def test_killed_run_resumes_its_fit(tmp_path):
             or (io_error and "starting afresh" in text)), text[:3000]
 
 
+def test_ctrl_c_stops_the_workers_and_starts_no_queued_task(tmp_path):
+    """run -j 2 with four sampling tasks (two fits, two comparisons) that would never converge:
+    Ctrl-C (SIGINT to the process group) while the fits burn in. Before, the workers took it as
+    their own KeyboardInterrupt, went back to the pool's loop and started the queued comparison,
+    and the run waited for it to end (64 s after the signal on the quick workflow, for ever here);
+    now the workers ignore SIGINT, the parent stops them, and no queued task starts."""
+    p = _workflow(tmp_path, steps=100000)
+    p.write_text(p.read_text().replace("min_steps = 100\n", "min_steps = 100000\n") + """
+[compare]
+enabled = true
+models = ["three_stage", "lugre"]
+tests = ["sine-2Hz-36lb-0.5in", "sine-1Hz-36lb-1in"]
+
+[compare.sampler]
+max_steps = 100000
+min_steps = 100000
+""")
+    wf = load_workflow(p)
+    assert sum(t.heavy for t in plan(wf).values()) == 4
+    proc = subprocess.Popen([sys.executable, "-m", "frictionuq.cli", "run", str(p), "-j", "2"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    logs = [T.task_log_path(wf.out, n) for n in ("fit:applied-36lb", "fit:applied-0lb")]
+    deadline = time.time() + 240
+    try:
+        while not all(f.is_file() and "burn-in round 1" in f.read_text() for f in logs):
+            assert time.time() < deadline, "the fits did not reach their burn-in in time"
+            time.sleep(0.5)
+        os.killpg(proc.pid, signal.SIGINT)
+        err = proc.communicate(timeout=120)[1]
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "interrupted" in err.strip().splitlines()[-1], err
+    started = sorted(f.name for f in (wf.out / "logs" / "tasks").iterdir())
+    assert not [n for n in started if n.startswith("compare")], started
+    assert not any(cache.state(wf.out, plan(wf)[n])[0] for n in ("fit:applied-36lb", "fit:applied-0lb"))
+
+
 def test_fits_on_a_dask_localcluster(first_run):
     import logging
     from dask.distributed import LocalCluster

@@ -64,3 +64,46 @@ def sigint_ignored():
         yield
     finally:
         signal.signal(signal.SIGINT, old)
+
+
+def worker_initializer():
+    """A spawned pool worker ignores SIGINT: Ctrl-C at a terminal reaches the whole process group,
+    and it is the parent's to handle (an idle worker printed a KeyboardInterrupt traceback); the
+    interrupted parent stops its workers with SIGTERM (stop_pool)."""
+    import signal
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def call_in_worker(fn, *args):
+    """fn(*args) in a pool worker process, which ends when fn is interrupted. The parent's
+    SIGTERM reaches a sampler as a KeyboardInterrupt between two steps (interrupts(), every
+    finished step stored); returned to concurrent.futures' worker loop, it was sent back as the
+    call's result and the process took the next queued call (a pool queues one more than it has
+    processes), which then ran to its end, so that an interrupted `fit --jobs 2` of three levels,
+    or `run -j 2`, went on fitting after Ctrl-C. Ending the process here stops it."""
+    try:
+        return fn(*args)
+    except KeyboardInterrupt:
+        import os
+        import sys
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(130)
+
+
+def stop_pool(pool, grace: float = 20.0) -> None:
+    """Stop a ProcessPoolExecutor of interrupted work at once: its queued calls cancelled, SIGTERM
+    to each process (a sampler stops between two steps, other work at once), SIGKILL to any still
+    running after `grace` seconds, then the pool shut down."""
+    import time
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    for p in procs:
+        if p.is_alive():
+            p.terminate()
+    end = time.monotonic() + grace
+    for p in procs:
+        p.join(max(0.0, end - time.monotonic()))
+        if p.is_alive():
+            p.kill()
+            p.join(5.0)
+    pool.shutdown(wait=True, cancel_futures=True)

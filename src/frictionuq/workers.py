@@ -30,12 +30,11 @@ import os
 def _init_worker():
     """One numba thread, and no automatic sampler progress bar: several processes' bars would
     overwrite each other's line (infer.sampler reads FRICTIONUQ_PROGRESS; this process only).
-    Ctrl-C is the parent's to handle: a worker ignores SIGINT (a terminal sends it to the whole
-    process group; an idle worker printed a KeyboardInterrupt traceback), and the parent
-    terminates its workers when it is interrupted (Workers.__exit__)."""
-    import signal
+    Ctrl-C is the parent's to handle (interrupts.worker_initializer): the interrupted parent
+    stops its workers (Workers.__exit__, interrupts.stop_pool)."""
     import numba
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    from .interrupts import worker_initializer
+    worker_initializer()
     numba.set_num_threads(1)
     os.environ["FRICTIONUQ_PROGRESS"] = "0"
 
@@ -66,14 +65,14 @@ class Workers:
         if self.jobs == 1 or len(items) < 2:
             return [fn(x) for x in items]
         from concurrent.futures import FIRST_EXCEPTION, wait
-        from .interrupts import interrupts, sigint_ignored
+        from .interrupts import call_in_worker, interrupts, sigint_ignored
         if self._pool is None:
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
             self._pool = ProcessPoolExecutor(self.jobs, mp_context=multiprocessing.get_context("spawn"),
                                              initializer=_init_worker)
         with sigint_ignored():       # the workers start (in submit) ignoring Ctrl-C from birth
-            futures = [self._pool.submit(fn, x) for x in items]
+            futures = [self._pool.submit(call_in_worker, fn, x) for x in items]
         # wait in short slices, so that a Ctrl-C or SIGTERM the pool's internals swallowed (one
         # landing in a finaliser) still stops the map at once: interrupts() notes it, check()
         # raises it, and the caller's `with Workers` terminates the processes
@@ -90,9 +89,10 @@ class Workers:
         interrupted or failed parent does not wait for work it will not use)."""
         if self._pool is not None:
             if terminate:
-                for p in list(getattr(self._pool, "_processes", {}).values()):
-                    p.terminate()
-            self._pool.shutdown(wait=True, cancel_futures=True)
+                from .interrupts import stop_pool
+                stop_pool(self._pool)
+            else:
+                self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
 
     def __enter__(self):

@@ -135,7 +135,9 @@ class _Pool:
         elif jobs > 1:
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
-            self.pool = ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn"))
+            from ..interrupts import worker_initializer
+            self.pool = ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn"),
+                                            initializer=worker_initializer)
 
     @property
     def inline(self) -> bool:
@@ -144,11 +146,19 @@ class _Pool:
     def submit(self, wf, task):
         if self.client is not None:
             return self.client.submit(execute, wf, task, self.threads, pure=False, key=f"{task.name}-{task.key[:12]}")
-        return self.pool.submit(execute, wf, task, self.threads)
+        from ..interrupts import call_in_worker, sigint_ignored
+        with sigint_ignored():       # a worker started here ignores Ctrl-C from birth
+            return self.pool.submit(call_in_worker, execute, wf, task, self.threads)
 
     def close(self, cancel: bool = False):
+        """Shut down after the running tasks, or (cancel: interrupted) stop them at once: queued
+        tasks cancelled, running ones stopped (a sampler between two steps, its chain kept)."""
         if self.pool is not None:
-            self.pool.shutdown(wait=not cancel, cancel_futures=cancel)
+            if cancel:
+                from ..interrupts import stop_pool
+                stop_pool(self.pool)
+            else:
+                self.pool.shutdown(wait=True)
         if self.client is not None:
             self.client.close()
 
