@@ -355,6 +355,19 @@ def test_missing_file(tmp_path):
     _raises_one_line(lambda: G.read_at2(p), p, "not found")
 
 
+def test_a_shipped_record_missing_says_what_the_variable_must_name(tmp_path, monkeypatch):
+    """FRICTIONUQ_GROUND_MOTIONS names the ground-motions folder itself; the message said "the
+    folder holding data/ground-motions", and set so, the path was still wrong."""
+    monkeypatch.setenv("FRICTIONUQ_GROUND_MOTIONS", str(tmp_path))
+    with pytest.raises(InputError) as e:
+        G.load_record("kobe")
+    msg = str(e.value)
+    assert "\n" not in msg and str(tmp_path / G.RECORDS["kobe"].folder) in msg
+    assert f"data/ground-motions folder itself, the one holding {G.RECORDS['kobe'].folder}/" in msg
+    monkeypatch.setenv("FRICTIONUQ_GROUND_MOTIONS", str(GM))
+    assert G.load_record("kobe") is not None
+
+
 _CORETYPE_SCRIPT = """
 import hashlib
 import os

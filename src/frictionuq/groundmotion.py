@@ -274,7 +274,7 @@ def load_record(key: str, root=None) -> GroundMotion:
     path = root / ref.folder / ref.file
     if not path.is_file():
         raise InputError(f"{path}: ground-motion file not found (set FRICTIONUQ_GROUND_MOTIONS to "
-                         "the folder holding data/ground-motions)")
+                         f"the shipped data/ground-motions folder itself, the one holding {ref.folder}/)")
     if path.suffix.lower() == ".at2":
         gm = read_at2(path, name=key)
     elif ref.column or path.suffix.lower() == ".txt":
