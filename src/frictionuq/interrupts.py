@@ -1,7 +1,9 @@
 """Ctrl-C (SIGINT) handled so that a long run stops cleanly: noted as well as raised, so that a
 KeyboardInterrupt Python swallows (one raised inside a finaliser) is raised again at the next
 check; and only noted, never raised, inside code that must not see it (emcee's steps). Used by
-the sampler (between steps and chunks) and the workflow runner (between tasks)."""
+the sampler (between steps and chunks) and the workflow runner (between tasks); the worker pools
+(workers.Workers, the runner's) stop their processes with worker_initializer, call_in_worker and
+stop_pool."""
 from __future__ import annotations
 
 import contextlib

@@ -77,11 +77,11 @@ def _recovery_lengths(x, y, eps):
     """Distance after each reversal over which the force covers 90 % of its swing, on the
     half-cycles that travel at least 40 % as far as the record's longest (a sine's first, from
     rest, travels half as far): a short one (an earthquake replay's small reversals) ends before
-    the backlash is taken up. Counted, they
-    made the median: on a short MFD campaign (two sines, the Kobe replay, a hidden
-    reversal_hump, seed 18) 0.39 mm against 13.9 mm on the sines' (d2 + d3 = 17.8 mm), so the
-    heuristic starts had d2 0.5 mm and d3 0.2 mm and their searches ended 2,700 nats below the
-    fit from the generating values (docs/log-discrepancy.md, 2026-12-05, evening)."""
+    the backlash is taken up. Counted, they made the median: on a short MFD campaign (two sines,
+    the Kobe replay, a hidden reversal_hump, seed 18) 0.39 mm against 13.9 mm on the sines'
+    (d2 + d3 = 17.8 mm), so the heuristic starts had d2 0.5 mm and d3 0.2 mm and their searches
+    ended 2,700 nats below the fit from the generating values (docs/log-discrepancy.md,
+    2026-12-05, evening)."""
     from ..noise import reversal_indices
     idx = reversal_indices(np.asarray(x, float), float(eps))
     out = []
