@@ -2,6 +2,8 @@
 ambiguous inputs, across the commands: one line `frictionuq: error: ...`, exit 2, no traceback,
 nothing half-written and nothing of the user's removed. (Cases found by probing the CLI on
 2026-12-01; each failed on the code before.)"""
+import os
+import stat
 from pathlib import Path
 
 import numpy as np
@@ -132,7 +134,20 @@ def test_simulate_refuses_a_folder_as_out_and_names_the_faulty_input(work, tmp_p
                                   "--out", str(tmp_path / "s.csv")]), "applied-force signal")
     assert f"{bad}:" in err and "P.json" not in err
     _one_line(capsys, main(base + ["--out", str(tmp_path / "s.csv"), "--eps", "-1"]),
-              "eps -1.0: the reversal dead-band")
+              "--eps -1.0: the reversal dead-band")
+    # a 5 m dead band, or a drive in millimetres given as metres (until 2026-12-05 simulated)
+    _one_line(capsys, main(base + ["--out", str(tmp_path / "s.csv"), "--eps", "5"]),
+              "--eps 5.0: 5 m is above 1 m, which no damper test reaches")
+    mm = tmp_path / "mm.csv"
+    np.savetxt(mm, np.column_stack([t, 20.0 * np.sin(t)]), delimiter=",", header="time,displacement",
+               comments="")
+    _one_line(capsys, main(["simulate", "--params", str(work / "P.json"), "--input", str(mm),
+                            "--out", str(tmp_path / "s.csv")]), f"{mm}: the drive's amplitude is 26.31 m, above 1 m")
+    # an existing FIFO (or device) as --out: until 2026-12-05 replaced by a regular file
+    fifo = tmp_path / "fifo.csv"
+    os.mkfifo(fifo)
+    _one_line(capsys, main(base + ["--out", str(fifo)]), "it exists and is not a regular file")
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode)
     _one_line(capsys, main(["simulate", "--params", str(odir), "--input", str(work / "X.csv"),
                             "--out", str(tmp_path / "s.csv")]), "is a folder, not a file")
     assert not (tmp_path / "s.csv").exists()

@@ -127,6 +127,30 @@ def test_ingest_round_trip(tmp_path, capsys):
         fq.load_campaign(out)
 
 
+@pytest.mark.parametrize("edit,fragment", [
+    (lambda m: m.pop("name"), "key name: missing is not a valid value"),
+    (lambda m: m.update(tests={"h1": {}}), "key tests: {'h1': {}} is not a valid value"),
+    (lambda m: m["tests"][0].pop("id"), "tests[0], key id: missing"),
+    (lambda m: m["tests"][1].pop("file"), "tests[1], key file: missing"),
+    (lambda m: m["tests"][0].update(applied="x"), "tests[0], key applied: 'x' is not a valid value"),
+    (lambda m: m["tests"].__setitem__(1, "h2"), "key tests[1]: 'h2' is not a valid value"),
+])
+def test_a_hand_edited_manifest_is_named_not_a_traceback(tmp_path, capsys, edit, fragment):
+    """An ingested folder is a campaign every command takes; its manifest edited by hand (a key
+    deleted, a wrong type) gave KeyError or TypeError tracebacks, or "could not convert string to
+    float: 'x'" without the file or key, until 2026-12-05."""
+    c = make_campaign(tmp_path / "c")
+    out = tmp_path / "in"
+    assert run_cli(["ingest", str(c), "--out", str(out)], capsys)[0] == 0
+    mp = out / "manifest.json"
+    m = json.loads(mp.read_text())
+    edit(m)
+    mp.write_text(json.dumps(m))
+    code, _, se = run_cli(["table", str(out)], capsys)
+    assert code == 2 and se.count("\n") == 1 and "Traceback" not in se, se
+    assert f"{mp}, {fragment}" in se and "ingest the campaign again" in se, se
+
+
 def _arts_json(n=40, units=None, applied=(50.0, -30.0)):
     t = np.arange(n) / 1024
     rows = [[float(tt), 0.5 * np.sin(tt * 6), 0.1 * np.cos(tt * 6), 0.0, applied[0] * (i % 2),
@@ -191,6 +215,20 @@ def _bad_cases():
     def arts(doc=None, units_applied="lb"):
         return lambda r: make_arts_campaign(r, doc=doc, units_applied=units_applied)
 
+    def gz_record(data: bytes):
+        """h2's record as tests/h2.csv.gz holding `data` (a damaged or truncated gzip file)."""
+        def b(r):
+            c = toml_edit("tests/h2.csv", "tests/h2.csv.gz")(r)
+            (c / "tests" / "h2.csv.gz").write_bytes(data)
+            return c
+        return b
+
+    def with_bom(r):
+        c = make_campaign(r)
+        p = c / "campaign.toml"
+        p.write_bytes(b"\xef\xbb\xbf" + p.read_bytes())
+        return c
+
     return [
         ("missing campaign.toml", no_toml, ["campaign.toml", "missing"]),
         ("unparsable toml", toml_edit('name = "mini"', 'name = "mini'), ["campaign.toml", "not valid TOML"]),
@@ -212,6 +250,14 @@ def _bad_cases():
          ["[columns]", "time and displacement are both read from column 'time'"]),
         ("unknown unit", toml_edit('force = "kN"', 'force = "tonnes"'), ["units.force", "'tonnes'"]),
         ("too few samples", file_case(_csv(n=9)), ["h2.csv", "9 samples", "at least 10"]),
+        # until 2026-12-05 a traceback (gzip.BadGzipFile, EOFError) and exit 1
+        ("not gzip", gz_record(b"notgzip\n"), ["h2.csv.gz", "not a readable compressed file"]),
+        ("truncated gzip", gz_record(gzip.compress(_csv(n=400).encode())[:900]),
+         ["h2.csv.gz", "not a readable compressed file"]),
+        # finite in the file, inf in SI (1e308 kN): until 2026-12-05 accepted as inf
+        ("overflow in SI", file_case(csv_with(7, 2, "1e308")),
+         ["h2.csv", "data row 7, force: 1e+308 kN overflows when converted to SI"]),
+        ("BOM", with_bom, ["campaign.toml", "not valid TOML", "byte-order mark (BOM)"]),
         ("empty file", file_case(""), ["h2.csv", "empty"]),
         ("json unit contradicts", arts(_arts_json(units={"displacement units": "mm"})),
          ["r.json.gz", "displacement unit 'mm'", "units.displacement = 'in'"]),

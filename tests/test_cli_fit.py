@@ -14,8 +14,6 @@ TWIN = str(Path(__file__).resolve().parents[1] / "data" / "brfd-twin")
     (["--effect", "hump"], "unknown effect 'hump'"),
     (["--test", "no-such-test"], "no test 'no-such-test'; its tests: h-35N-0.05Hz, "),
     (["--test", "h-35N-0.05Hz", "--test", "h-35N-0.5hz"], "no test 'h-35N-0.5hz'; its tests: "),
-    (["--jobs", "0"], "jobs must be an integer >= 1, got 0"),
-    (["--temperatures", "0"], "temperatures must be an integer >= 1, got 0"),
     (["--temperatures", "3", "--stored-run", "ensemble"], "temperatures > 1 needs stored_run"),
     (["--effect", "applied_tracking", "--test", "h-267N-0.5Hz", "--model", "lugre", "--effect", "stage2_nonlinear"],
      "stage2_nonlinear"),

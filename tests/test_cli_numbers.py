@@ -1,5 +1,7 @@
-"""Numeric options every command shares: a negative seed, one beyond 64 bits or a step cap
-below 1 is refused before any work, with one line naming the option, exit 2, and nothing written. (Until
+"""Numeric options every command shares: a negative seed, one beyond 64 bits, a step cap, a
+process count or an effect count below 1, or fewer than 2 draws is refused by the parser, before
+any work, with one line naming the option, exit 2, and nothing written (until 2026-12-05 the step
+cap's, processes' and draws' lines named the library's field, "sampler: max_steps"). (Until
 2026-11-27 `--max-steps 0` fell back silently to the default cap of 100,000 steps, and a
 negative seed failed inside numpy, after the fit had started, with "expected non-negative
 integer"; a seed of 2**64 or more passed until 2026-12-05 and failed when the chain's HDF5
@@ -19,24 +21,30 @@ TWIN = str(Path(__file__).resolve().parents[1] / "data" / "brfd-twin")
     (["fit", TWIN, "--seed", "-1"], "argument --seed: takes an integer from 0 to 9223372036854775807, got '-1'"),
     (["fit", TWIN, "--seed", str(2**64)], "argument --seed: takes an integer from 0 to 9223372036854775807, got '18446744073709551616'"),
     (["discover", TWIN, "--check-seed", "-4"], "argument --check-seed: takes an integer from 0"),
-    (["fit", TWIN, "--max-steps", "0"], "sampler: max_steps must be an integer >= 1, got 0"),
-    (["fit", TWIN, "--max-steps", "-3"], "max_steps must be an integer >= 1, got -3"),
+    (["fit", TWIN, "--max-steps", "0"], "argument --max-steps: takes an integer >= 1, got '0'"),
+    (["fit", TWIN, "--max-steps", "-3"], "argument --max-steps: takes an integer >= 1, got '-3'"),
+    (["fit", TWIN, "--jobs", "0"], "argument --jobs/-j: takes an integer >= 1, got '0'"),
+    (["fit", TWIN, "--temperatures", "0"], "argument --temperatures: takes an integer >= 1, got '0'"),
     (["compare", TWIN, "--seed", "-2"], "argument --seed: takes an integer from 0 to 9223372036854775807, got '-2'"),
-    (["compare", TWIN, "--max-steps", "0"], "max_steps must be an integer >= 1, got 0"),
+    (["compare", TWIN, "--max-steps", "0"], "argument --max-steps: takes an integer >= 1, got '0'"),
     (["discover", TWIN, "--seed", "-2"], "argument --seed: takes an integer from 0 to 9223372036854775807, got '-2'"),
-    (["discover", TWIN, "--max-steps", "0"], "max_steps must be an integer >= 1, got 0"),
+    (["discover", TWIN, "--max-steps", "0"], "argument --max-steps: takes an integer >= 1, got '0'"),
+    (["discover", TWIN, "--max-effects", "0"], "argument --max-effects: takes an integer >= 1, got '0'"),
+    (["run", "WF", "-j", "0"], "argument -j/--jobs: takes an integer >= 1, got '0'"),
     (["predict", "FIT", "--harmonic", "0.01,1", "--applied", "36", "--seed", "-1"],
      "argument --seed: takes an integer from 0 to 9223372036854775807, got '-1'"),
     (["validate", "FIT", TWIN, "--test", "x", "--seed", "-1"],
      "argument --seed: takes an integer from 0 to 9223372036854775807, got '-1'"),
     (["validate", "FIT", TWIN, "--test", "x", "--draws", "1"],
-     "validate: number of draws must be an integer >= 2, got 1"),
+     "argument --draws: takes an integer >= 2, got '1'"),
+    (["predict", "FIT", "--harmonic", "0.01,1", "--applied", "36", "--draws", "x"],
+     "argument --draws: takes an integer >= 2, got 'x'"),
     (["law", "FIT", "--seed", "-1"], "argument --seed: takes an integer from 0 to 9223372036854775807, got '-1'"),
 ])
 def test_bad_numbers_are_refused_before_any_work(tmp_path, capsys, argv, fragment):
     out = tmp_path / "out"
     argv = [str(tmp_path / "fit") if a == "FIT" else a for a in argv]
-    if argv[0] not in ("law",):
+    if argv[0] not in ("law", "run"):
         argv += ["--out", str(out)]
     try:
         code = main(argv)

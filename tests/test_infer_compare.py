@@ -291,15 +291,20 @@ def test_a_levels_fits_in_two_processes_are_the_serial_ones():
 
 # ------------------------------------------------------------------ CLI
 @pytest.mark.parametrize("extra,fragment", [
-    (["--jobs", "0"], "jobs must be an integer >= 1, got 0"),
+    (["--jobs", "0"], "argument --jobs/-j: takes an integer >= 1, got '0'"),
     (["--test", "no-such-test"], "unknown test id(s) no-such-test"),
     (["--model", "maxwell"], "unknown model 'maxwell'"),
-    (["--model", "lugre", "--kind", "earthquake", "--test", "h-267N-0.5Hz"],
+    (["--model", "lugre"], "--model lugre: compare needs two models"),
+    (["--model", "lugre", "--model", "three_stage", "--model", "lugre"], "--model lugre: given twice"),
+    (["--kind", "earthquake", "--test", "h-267N-0.5Hz"],
      "no test of kind earthquake among the tests selected; its tests: "),
 ])
 def test_compare_refuses(tmp_path, capsys, extra, fragment):
     out = tmp_path / "out"
-    code = main(["compare", TWIN, "--out", str(out)] + extra)
+    try:
+        code = main(["compare", TWIN, "--out", str(out)] + extra)
+    except SystemExit as e:         # the parser's own refusal (an option's type, e.g. --jobs)
+        code = e.code
     err = capsys.readouterr().err
     assert code == 2, err
     assert err.count("\n") == 1 and fragment in err and "Traceback" not in err, err

@@ -226,7 +226,7 @@ def test_noise_correlation_is_converted_to_the_prediction_rate():
 @pytest.mark.parametrize("case", ["missing-file", "missing-column", "text-cell", "time-back",
                                   "amplitude", "frequency", "not-fit-dir", "no-level-no-law",
                                   "applied-text", "out-not-empty", "mm-harmonic", "mm-input",
-                                  "clean-harmonic"])
+                                  "clean-harmonic", "file-as-fit-dir"])
 def test_bad_input_exit_2_one_line_nothing_written(fit_dir, tmp_path, capsys, case):
     X = tmp_path / "X.csv"
     rows = [(k * 0.01, float(0.01 * np.sin(k * 0.1))) for k in range(50)]
@@ -251,6 +251,9 @@ def test_bad_input_exit_2_one_line_nothing_written(fit_dir, tmp_path, capsys, ca
         src, frag = ["--harmonic", "0.01,0"], "frequency"
     elif case == "not-fit-dir":
         fdir, frag = str(tmp_path), "not a fit output folder"
+    elif case == "file-as-fit-dir":        # said "no such fit output folder" until 2026-12-05
+        X.write_text(good)
+        fdir, frag = str(X), "X.csv: is a file, not a fit output folder"
     elif case == "no-level-no-law":
         # in the user's unit, SI beside it
         applied, frag = "0.1", "applied force 0.1 kN (100 N) (fitted: 0.267 kN (267 N)) and no usable force-dependence law"

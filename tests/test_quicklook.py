@@ -36,6 +36,8 @@ def test_real_campaign_table(capsys):
     out = capsys.readouterr().out
     assert "applied (lb)" in out and "RMSE (kN)" in out and "sine-1Hz-80lb" in out
     assert out.count("\n") >= 14
+    # the source units as words, not a Python dict (until 2026-12-05)
+    assert "source units time s, displacement in, force kip, applied lb;" in out and "{" not in out
 
 
 def test_levels_far_from_the_published_ones_are_flagged(capsys):

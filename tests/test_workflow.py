@@ -84,6 +84,12 @@ def test_the_stored_run_is_chosen_in_the_sampler_table(tmp_path):
      "[[predict.ground_motion]][0]", "either record"),
     ("\n[[predict.ground_motion]]\nrecord = 'kobe'\ndt = 0.01\npeak_m = 0.01\napplied = 36\n",
      "[[predict.ground_motion]][0].dt", "applies to file only"),
+    # a length in millimetres typed as metres: refused at load (until 2026-12-05 the fits ran
+    # first and the predict task failed, naming a generated file)
+    ("\n[[predict.harmonic]]\namplitude_m = 20\nfrequency_hz = 1\napplied = 36\n",
+     "[[predict.harmonic]][0].amplitude_m", "20 m is above 1 m, which no damper test reaches"),
+    ("\n[[predict.ground_motion]]\nrecord = 'kobe'\npeak_m = 20\napplied = 36\n",
+     "[[predict.ground_motion]][0].peak_m", "20 m is above 1 m"),
     ("\n[compare]\nmodels = ['lugre']\n", "[compare].models", "two models"),
     ("\n[compare]\nenabled = 'yes'\n", "[compare].enabled", "true or false"),
     ("\n[discrepancy]\nenabled = 1\n", "[discrepancy].enabled", "true or false"),
@@ -105,6 +111,19 @@ def test_bad_keys_and_values_name_file_key_and_problem(tmp_path, extra, where, p
         load_workflow(p)
     msg = str(e.value)
     assert str(p) in msg and where in msg and problem in msg, msg
+
+
+def test_a_folder_or_a_bom_is_named_for_what_it_is(tmp_path):
+    """A folder given as the workflow said "workflow file not found", and a UTF-8 byte-order mark
+    gave TOML's "Invalid statement (at line 1, column 1)" alone (until 2026-12-05)."""
+    with pytest.raises(InputError, match="is a folder, not a file; give the workflow's .toml file"):
+        load_workflow(tmp_path)
+    with pytest.raises(InputError, match="workflow file not found"):
+        load_workflow(tmp_path / "none.toml")
+    p = _write(tmp_path, "")
+    p.write_bytes(b"\xef\xbb\xbf" + p.read_bytes())
+    with pytest.raises(InputError, match="not valid TOML .*byte-order mark .BOM.: save it as UTF-8 without BOM"):
+        load_workflow(p)
 
 
 def test_the_report_folder_is_checked_when_the_workflow_loads(tmp_path):

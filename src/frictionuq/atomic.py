@@ -52,6 +52,9 @@ def replacing(path):
     path = Path(path)
     if path.is_dir():
         raise InputError(f"cannot write the file {path}: it is a folder")
+    if path.exists() and not path.is_file():     # the rename would replace a device or FIFO
+        raise InputError(f"cannot write the file {path}: it exists and is not a regular file "
+                         "(a device, FIFO or socket); choose another path")
     writable_parent(path)
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)

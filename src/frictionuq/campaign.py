@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from . import units as U
-from .errors import InputError, not_a_file, unknown
+from .errors import InputError, bom_hint, not_a_file, unknown
 from .records import MIN_SAMPLES, check_time, read_arts_json, read_csv
 
 KINDS = ("harmonic", "earthquake", "other")
@@ -219,11 +219,11 @@ def read_toml(folder: Path) -> tuple[dict, Path]:
     toml = folder / "campaign.toml"
     if not toml.is_file():
         raise InputError(f"{toml}: missing (a campaign folder needs campaign.toml, spec section 7)")
+    raw = toml.read_bytes()
     try:
-        with open(toml, "rb") as f:
-            return tomllib.load(f), toml
+        return tomllib.loads(raw.decode("utf-8")), toml
     except tomllib.TOMLDecodeError as e:
-        raise InputError(f"{toml}: not valid TOML ({' '.join(str(e).split())})") from None
+        raise InputError(f"{toml}: not valid TOML ({' '.join(str(e).split())}){bom_hint(raw)}") from None
     except UnicodeDecodeError:
         raise InputError(f"{toml}: not valid TOML (not UTF-8 text)") from None
 
@@ -324,11 +324,19 @@ def read_record(folder: Path, test: dict, units: dict, columns: dict, where: str
     else:
         hdr = {k: columns.get(k, k) for k in ("time", "displacement", "force")}
         cols = read_csv(path, hdr, {"applied": columns.get("applied", "applied")})  # time checked
-    rec = Record(t=U.to_si(cols["time"], "time", units["time"]),
-                 x=U.to_si(cols["displacement"], "displacement", units["displacement"]),
-                 force=U.to_si(cols["force"], "force", units["force"]),
-                 applied=(U.to_si(cols["applied"], "applied", units["applied"])
-                          if "applied" in cols else None))
+    si = {}
+    for key, kind in (("time", "time"), ("displacement", "displacement"), ("force", "force"),
+                      ("applied", "applied")):
+        if key not in cols:
+            continue
+        with np.errstate(over="ignore"):
+            si[key] = U.to_si(cols[key], kind, units[key])
+        bad = np.flatnonzero(~np.isfinite(si[key]))
+        if bad.size:      # finite in the file, beyond float range in SI (1e308 kN)
+            k = int(bad[0])
+            raise InputError(f"{path}, data row {k + 1}, {key}: "
+                             f"{cols[key][k]:g} {units[key]} overflows when converted to SI")
+    rec = Record(t=si["time"], x=si["displacement"], force=si["force"], applied=si.get("applied"))
     return rec, sha256_file(path)
 
 

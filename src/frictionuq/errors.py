@@ -34,12 +34,21 @@ def unknown(what: str, name, known) -> str:
 
 
 def not_a_file(path) -> str | None:
-    """Why `path` cannot be read as a file ("is a folder, not a file" or "file not found"), or
-    None when it is one."""
+    """Why `path` cannot be read as a file ("is a folder, not a file", "file not found", or not a
+    regular file), or None when it is one."""
     p = Path(path)
     if p.is_file():
         return None
-    return "is a folder, not a file" if p.is_dir() else "file not found"
+    if p.is_dir():
+        return "is a folder, not a file"
+    return "is not a regular file (a device, FIFO or socket)" if p.exists() else "file not found"
+
+
+def bom_hint(raw: bytes) -> str:
+    """The end of a "not valid TOML" message for a file starting with a UTF-8 byte-order mark
+    (some Windows editors write one; TOML does not allow it)."""
+    return ("; the file starts with a UTF-8 byte-order mark (BOM): save it as UTF-8 without BOM"
+            if raw.startswith(b"\xef\xbb\xbf") else "")
 
 
 def where(path, row: int | None = None, key: str | None = None) -> str:

@@ -32,7 +32,9 @@ def load_summary(fit_dir) -> dict:
     """summary.json of a fit output folder, checked to be one."""
     fit_dir = Path(fit_dir)
     if not fit_dir.is_dir():
-        raise InputError(f"{fit_dir}: no such fit output folder")
+        raise InputError(f"{fit_dir}: " + ("is a file, not a fit output folder (the folder `frictionuq "
+                                           "fit --out` wrote)" if fit_dir.exists() else
+                                           "no such fit output folder"))
     if not (fit_dir / SUMMARY).is_file():
         raise InputError(f"{fit_dir}: not a fit output folder (no {SUMMARY}); run `frictionuq fit` first")
     s = read_json(fit_dir / SUMMARY, "summary of a fit output folder")

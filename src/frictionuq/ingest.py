@@ -87,11 +87,29 @@ def load_ingested(path, read_records: bool = True) -> Campaign:
         raise InputError(f"{mpath}: cannot read the manifest ({' '.join(str(e).split())})") from None
     if not isinstance(m, dict) or m.get("format") != FORMAT:
         raise InputError(f"{mpath}: not a frictionuq ingested manifest (format {FORMAT!r})")
+
+    def damaged(where, key, v):
+        return InputError(f"{mpath}, {where}key {key}: {'missing' if v is None else repr(v)} is not "
+                          "a valid value; the manifest was edited or damaged: ingest the campaign again")
+
+    def field(d, key, where, kind, optional=False):
+        """d[key] checked: a damaged manifest is named, not a KeyError."""
+        v = d.get(key)
+        if not ((v is None and optional) or (isinstance(v, kind) and not isinstance(v, bool))):
+            raise damaged(where, key, v)
+        return v
+    for key, kind in (("name", str), ("source_units", dict), ("package_version", str), ("tests", list)):
+        field(m, key, "", kind)
     tests = []
     for i, t in enumerate(m["tests"]):
-        te = Test(id=t["id"], file=t["file"], applied=float(t["applied"]), kind=t["kind"],
-                  frequency_hz=t["frequency_hz"], amplitude=t["amplitude_m"],
-                  description=t.get("description", ""), sha256=t["sha256"])
+        if not isinstance(t, dict):
+            raise damaged("", f"tests[{i}]", t)
+        w = f"tests[{i}], "
+        te = Test(id=field(t, "id", w, str), file=field(t, "file", w, str),
+                  applied=float(field(t, "applied", w, (int, float))), kind=field(t, "kind", w, str),
+                  frequency_hz=field(t, "frequency_hz", w, (int, float), optional=True),
+                  amplitude=field(t, "amplitude_m", w, (int, float), optional=True),
+                  description=t.get("description", ""), sha256=field(t, "sha256", w, str))
         if read_records:
             f = path / t["file"]
             if not f.is_file():

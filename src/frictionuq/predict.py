@@ -39,13 +39,11 @@ from .draws import LAW_SOURCE, Draws, choose_draws
 from .extrapolation import warn_about
 from .cycles import CYCLE_COLUMNS, cycle_bounds, cycle_table
 from .fitdir import campaign_applied_unit, load_summary, not_converged
+from .units import check_amplitude
 
 QUANTILES = (2.5, 25.0, 50.0, 75.0, 97.5)
 HARMONIC_CYCLES = 3
 HARMONIC_SAMPLES_PER_CYCLE = 200
-#: an input amplitude (largest |x - median x|) above this is refused: no damper test moves a
-#: metre; it is millimetres given as metres (inputs are in SI)
-AMPLITUDE_PLAUSIBLE_M = 1.0
 BAND_COLUMNS = ["time", "displacement",
                 "force_median", "force_q2.5", "force_q25", "force_q75", "force_q97.5",
                 "force_model_median", "force_model_q2.5", "force_model_q25", "force_model_q75",
@@ -238,17 +236,6 @@ def fit_drive_lowpass(summary: dict, eps: float) -> float | None:
 # ---------------------------------------------------------------- files
 
 
-def check_amplitude(x, what: str) -> None:
-    """Refuse a drive whose amplitude (largest |x - median x|) is above AMPLITUDE_PLAUSIBLE_M:
-    millimetres given as metres."""
-    from .noise import amplitude
-    amp = amplitude(x)
-    if amp > AMPLITUDE_PLAUSIBLE_M:
-        raise InputError(f"{what}: the drive's amplitude is {amp:.4g} m, above "
-                         f"{AMPLITUDE_PLAUSIBLE_M:g} m, which no damper test reaches: displacements "
-                         f"are in metres (25 mm is 0.025)")
-
-
 def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied: float,
                      applied_unit: str | None = None, n_draws: int = 400, seed: int = 1,
                      include_offset: bool = False, clean_input: bool = False,
@@ -258,7 +245,7 @@ def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied
     campaign's applied unit; harmonic = (amplitude m, frequency Hz). clean_input: the CSV is a
     clean generated drive (a ground motion's displacement history), predicted like the harmonic
     with eps = 0 and unfiltered, not as a measured record; source: where such a drive came from
-    (recorded in prediction.json's input). A drive of amplitude above AMPLITUDE_PLAUSIBLE_M is
+    (recorded in prediction.json's input). A drive of amplitude above units.AMPLITUDE_PLAUSIBLE_M is
     refused. Returns prediction.json."""
     from . import __version__, units as U
     from .campaign import sha256_file

@@ -93,7 +93,8 @@ def campaign_table(path, published: str = "none", eps="auto") -> str:
     df, camp = campaign_frame(path, published, eps)
     from . import __version__
     head = (f"frictionuq {__version__} | campaign {camp.name!r}: {count(len(camp.tests), 'test')}, device {camp.device or '?'}; "
-            f"source units {camp.units}; values below in the units of each column header")
+            f"source units {', '.join(f'{k} {v}' for k, v in camp.units.items())}; values below "
+            "in the units of each column header")
     note = ""
     if published and published != "none":
         note = ("\nRMSE/NRMSE: published model at the nearest published level, after removing the mean "

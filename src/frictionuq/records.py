@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import gzip
 import json
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -67,6 +68,9 @@ def read_csv(path, columns: dict[str, str], optional: dict[str, str] | None = No
         raise InputError(f"{path}: the file is empty") from None
     except (pd.errors.ParserError, UnicodeDecodeError) as e:
         raise InputError(f"{path}: not a readable CSV file ({' '.join(str(e).split())})") from None
+    except (OSError, EOFError, zlib.error) as e:     # a damaged or truncated .gz, or I/O
+        what = "not a readable compressed file" if path.suffix.lower() == ".gz" else "cannot read"
+        raise InputError(f"{path}: {what} ({' '.join(str(e).split()) or type(e).__name__})") from None
     df.columns = [str(c).strip() for c in df.columns]
     blank = df.apply(lambda c: c.isna() | (c.astype(str).str.strip() == "")).all(axis=1)
     df = df[~blank.to_numpy()]
@@ -98,7 +102,8 @@ def read_csv(path, columns: dict[str, str], optional: dict[str, str] | None = No
 def _header(path) -> list[str]:
     """The CSV's header row as written (its first non-blank line)."""
     import csv
-    with open(path, newline="", encoding="utf-8", errors="replace") as f:
+    opener = gzip.open if Path(path).suffix.lower() == ".gz" else open
+    with opener(path, "rt", newline="", encoding="utf-8", errors="replace") as f:
         for row in csv.reader(f):
             if any(c.strip() for c in row):
                 return row
@@ -121,7 +126,7 @@ def _load_json(path: Path):
         opener = gzip.open if path.name.endswith(".gz") else open
         with opener(path, "rt", encoding="utf-8") as f:
             return json.load(f)
-    except (OSError, EOFError, UnicodeDecodeError) as e:
+    except (OSError, EOFError, UnicodeDecodeError, zlib.error) as e:
         raise InputError(f"{path}: cannot read ({' '.join(str(e).split())})") from None
     except json.JSONDecodeError as e:
         raise InputError(f"{path}: not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})") from None

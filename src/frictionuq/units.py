@@ -11,6 +11,9 @@ from .errors import unknown
 
 # Exact definitions: 1 in = 0.0254 m (international inch, 1959); 1 lbf = 4.4482216152605 N
 # (avoirdupois pound x standard gravity 9.80665 m/s^2); 1 kip = 1000 lbf; 1 psi = 1 lbf/in^2.
+#: a drive amplitude (largest |x - median x|) or a length option above this is refused: no damper
+#: test moves a metre; it is millimetres given as metres (inputs are in SI)
+AMPLITUDE_PLAUSIBLE_M = 1.0
 LBF = 4.4482216152605
 INCH = 0.0254
 PSI = LBF / INCH**2
@@ -77,3 +80,19 @@ def display(si_unit: str) -> tuple[str, float]:
 def fmt(value: float, unit: str, digits: int = 4) -> str:
     """`value` (already in `unit`) with its unit, for reports: fmt(12.3, 'kN') -> '12.3 kN'."""
     return f"{value:.{digits}g} {unit}"
+
+
+def metres_note() -> str:
+    """The end of a message refusing a length above AMPLITUDE_PLAUSIBLE_M."""
+    return (f"above {AMPLITUDE_PLAUSIBLE_M:g} m, which no damper test reaches: lengths are in "
+            "metres (25 mm is 0.025)")
+
+
+def check_amplitude(x, what: str) -> None:
+    """Refuse a drive whose amplitude (largest |x - median x|) is above AMPLITUDE_PLAUSIBLE_M:
+    millimetres given as metres."""
+    from .errors import InputError
+    from .noise import amplitude
+    amp = amplitude(x)
+    if amp > AMPLITUDE_PLAUSIBLE_M:
+        raise InputError(f"{what}: the drive's amplitude is {amp:.4g} m, {metres_note()}")

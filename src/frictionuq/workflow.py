@@ -49,8 +49,9 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from .errors import MAX_SEED, InputError
+from .errors import MAX_SEED, InputError, bom_hint, not_a_file
 from .tomlcheck import Checker
+from .units import AMPLITUDE_PLAUSIBLE_M, metres_note
 
 NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]*$")
 MODELS = ("three_stage", "lugre")
@@ -254,6 +255,8 @@ def _predict(c: Checker, t: dict, base: Path) -> dict:
     for i, e in enumerate(_entries(c, t, "harmonic", HARMONIC_KEYS, w)):
         wh = f"[[predict.harmonic]][{i}]"
         amp = c.num(e, "amplitude_m", wh, positive=True, required=True)
+        if amp > AMPLITUDE_PLAUSIBLE_M:
+            c.fail(f"{wh}.amplitude_m", f"{amp:g} m is {metres_note()}")
         f = c.num(e, "frequency_hz", wh, positive=True, required=True)
         a = c.num(e, "applied", wh, minimum=0, required=True)
         out["harmonic"].append({"name": named(e, f"harmonic-{amp * 1e3:g}mm-{f:g}Hz-{a:g}", wh),
@@ -264,6 +267,8 @@ def _predict(c: Checker, t: dict, base: Path) -> dict:
         label = src.get("record") or (re.sub(r"[^A-Za-z0-9._+-]+", "_", Path(src["file"]).stem)
                                          .lstrip("._+-") or "ground-motion")
         peak = c.num(e, "peak_m", wh, positive=True, required=True)
+        if peak > AMPLITUDE_PLAUSIBLE_M:
+            c.fail(f"{wh}.peak_m", f"{peak:g} m is {metres_note()}")
         a = c.num(e, "applied", wh, minimum=0, required=True)
         out["ground_motion"].append({"name": named(e, f"{label}-{a:g}", wh), **src,
                                      "peak_m": peak, "applied": a,
@@ -287,12 +292,14 @@ def load_workflow(path) -> Workflow:
     """Read and validate a workflow file. Raises InputError naming the file, key and problem."""
     path = Path(path)
     if not path.is_file():
-        raise InputError(f"{path}: workflow file not found")
+        why = not_a_file(path)
+        raise InputError(f"{path}: " + ("workflow file not found" if why == "file not found" else
+                                        f"{why}; give the workflow's .toml file"))
     raw = path.read_bytes()
     try:
         doc = tomllib.loads(raw.decode("utf-8"))
     except (UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
-        raise InputError(f"{path}: not valid TOML ({e})") from None
+        raise InputError(f"{path}: not valid TOML ({e}){bom_hint(raw)}") from None
     c = Checker(path)
     c.unknown(doc, SECTIONS, "")
     tables = {s: c.table(doc, s) for s in SECTIONS}

@@ -146,10 +146,21 @@ def _cmd_advantage(a):
 
 
 def _cmd_compare(a):
+    from ..errors import InputError, unknown
     from ..infer.compare import compare_campaign, format_table
     from ..infer.fit import FitConfig
     samp = _sampler_config(a)
-    models = list(dict.fromkeys(a.model or ["three_stage", "lugre"]))
+    models = a.model or ["three_stage", "lugre"]
+    from ..params import MODELS
+    for m in models:
+        if m not in MODELS:
+            raise InputError(unknown("model", m, MODELS))
+    if len(set(models)) != len(models):
+        raise InputError(f"--model {next(m for i, m in enumerate(models) if m in models[:i])}: "
+                         "given twice; give each model once")
+    if len(models) < 2:
+        raise InputError(f"--model {models[0]}: compare needs two models (e.g. --model three_stage "
+                         "--model lugre); one model's posterior is `frictionuq fit`")
     from ..infer.priors import prior_options
     pri = prior_options(a.prior)
     cfgs = {m: FitConfig(model=m, likelihood=a.likelihood, seed=a.seed, sampler=samp, priors=pri,

@@ -19,6 +19,20 @@ def _seed(text: str) -> int:
         raise argparse.ArgumentTypeError(f"takes an integer from 0 to {MAX_SEED}, got {text!r}") from None
 
 
+def _at_least(minimum: int):
+    """An integer option's type: refused by the parser, naming the option, below `minimum`."""
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            v = None
+        if v is None or v < minimum:
+            raise argparse.ArgumentTypeError(f"takes an integer >= {minimum}, got {text!r}")
+        return v
+    parse.__name__ = f"integer >= {minimum}"
+    return parse
+
+
 def _add_selection(s, max_steps_help: str) -> None:
     """Seed, test selection, step cap and the stored run's design, shared by the commands that
     run fits."""
@@ -29,11 +43,11 @@ def _add_selection(s, max_steps_help: str) -> None:
     s.add_argument("--test", action="append", metavar="ID", help="only this test (repeatable)")
     s.add_argument("--kind", action="append", choices=["harmonic", "earthquake", "other"],
                    help="only tests of this kind (repeatable)")
-    s.add_argument("--max-steps", type=int, default=None, help=max_steps_help)
+    s.add_argument("--max-steps", type=_at_least(1), default=None, help=max_steps_help)
     s.add_argument("--stored-run", choices=STORED_RUNS, default=None,
                    help="the sampler's stored run: 16 independent chains (default) or the burn-in's "
                         "ensemble of walkers with differential-evolution moves")
-    s.add_argument("--temperatures", type=int, default=None, metavar="L",
+    s.add_argument("--temperatures", type=_at_least(1), default=None, metavar="L",
                    help="parallel tempering: L tempered copies of each of the stored run's chains "
                         "(default 1: none), for posteriors with separated modes; costs L times "
                         "the evaluations per step")
@@ -135,7 +149,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "the data (default), or simulate on the decimated displacement (faster)")
     _add_drive_lowpass(s)
     _add_prior(s, "an effect's parameter applies only with --effect of that effect")
-    s.add_argument("--jobs", "-j", type=int, default=1, metavar="N",
+    s.add_argument("--jobs", "-j", type=_at_least(1), default=1, metavar="N",
                    help="fits side by side in N processes, one numba thread each (default 1: one "
                         "fit at a time on every core); the results do not depend on it")
     _add_selection(s, "cap on stored sampler steps (default 100000: until converged)")
@@ -154,7 +168,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--test", action="append", required=True, metavar="ID",
                    help="held-out test id (repeatable)")
     s.add_argument("--out", required=True, help="output folder: validation.json, bands, figures")
-    s.add_argument("--draws", type=int, default=400)
+    s.add_argument("--draws", type=_at_least(2), default=400)
     s.add_argument("--seed", type=_seed, default=1)
     s.set_defaults(func=C._cmd_validate)
 
@@ -173,7 +187,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--applied", required=True,
                    help="applied force (or pressure), in the fitted campaign's applied unit")
     s.add_argument("--out", required=True, help="output folder (replaced atomically)")
-    s.add_argument("--draws", type=int, default=400, help="posterior draws (default 400)")
+    s.add_argument("--draws", type=_at_least(2), default=400, help="posterior draws (default 400)")
     s.add_argument("--seed", type=_seed, default=1)
     s.add_argument("--include-offset", action="store_true",
                    help="add the fitted load-cell offset to the noisy bands (default: excluded)")
@@ -198,7 +212,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--offset", choices=["marginal", "shared"], default="marginal",
                    help="held-out test's load-cell offset: integrated out (default) or the training fit's")
     _add_prior(s, "applies to every model with the parameter (lugre has no backlash)")
-    s.add_argument("--jobs", "-j", type=int, default=1, metavar="N",
+    s.add_argument("--jobs", "-j", type=_at_least(1), default=1, metavar="N",
                    help="a level's fits (each model on all tests and without each test) side by "
                         "side in N processes, one numba thread each (default 1); the results do "
                         "not depend on it")
@@ -219,14 +233,14 @@ def build_parser() -> argparse.ArgumentParser:
                         f"({', '.join(sorted(BEYOND_SPEC))})")
     _add_prior(s, "applies to the baseline and to every candidate with the parameter (e.g. "
                   "b_ch=uniform:0:1 frees chatter's tail)")
-    s.add_argument("--max-effects", type=int, default=1, metavar="N",
+    s.add_argument("--max-effects", type=_at_least(1), default=1, metavar="N",
                    help="name up to N effects, one per round, each screened against the model "
                         "with the ones named before (default 1)")
     s.add_argument("--check-seed", action="append", type=_seed, metavar="N",
                    help="screen again with seed N (repeatable) and say whether every seed names "
                         "the same effects (one more screening each)")
     from ..workers import default_jobs
-    s.add_argument("--jobs", "-j", type=int, default=default_jobs(), metavar="N",
+    s.add_argument("--jobs", "-j", type=_at_least(1), default=default_jobs(), metavar="N",
                    help="processes for the screening's fits (default: every core, here "
                         f"{default_jobs()}); the results do not depend on it")
     _add_selection(s, "cap on stored sampler steps of the refit (default 100000: until converged; "
@@ -238,7 +252,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("targets", nargs="*", metavar="TARGET",
                    help="ingest, fit, predict, compare, discrepancy, report or all (default), "
                         "or a task name (`frictionuq status WORKFLOW` lists them)")
-    s.add_argument("-j", "--jobs", type=int, default=1, help="fits in parallel (local processes)")
+    s.add_argument("-j", "--jobs", type=_at_least(1), default=1, help="fits in parallel (local processes)")
     s.add_argument("--scheduler", metavar="ADDRESS", default=None,
                    help="send fits to this Dask distributed scheduler (e.g. tcp://host:8786)")
     s.add_argument("--force", action="store_true", help="rerun the targets' tasks even if up to date")

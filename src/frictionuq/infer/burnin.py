@@ -103,7 +103,8 @@ def burn_in(target, state: np.ndarray, cfg, seed: int, rng, log=None,
         steps += cfg.burn_steps
         level = float(np.median(lpc[cfg.burn_steps // 2:]))
         log(f"burn-in round {rnd + 1}: acceptance {np.mean(bs.acceptance_fraction):.2f}, "
-            f"median log-posterior (u) {level:.6g} (best {np.max(lpc):.6g}), "
+            f"median log-posterior {level:.6g} nats in the sampler's unbounded coordinates "
+            f"(best {np.max(lpc):.6g}), "
             f"{stuck} stuck walkers dropped, "
             + (f"proposal width ratio {ratio:.2f}, median shift {shift:.2f} widths"
                if np.isfinite(ratio) else "first proposal fitted (no earlier one to compare)"))

@@ -249,7 +249,7 @@ def find_map(logpost: LogPosterior, scales: RecordScales, rng: np.random.Generat
             th_map, lp_map = polish(logpost, th_map, float(logpost.log_prob(th_map[None, :])[0]))
         info["noise_theta"] = thetas
         log(f"ARMA(1,1) noise, MA coefficient per record at the MAP: "
-            f"{[round(t, 3) for t in thetas]}; MAP log-posterior {lp_map:.6g}")
+            f"{[round(t, 3) for t in thetas]}; MAP log-posterior {lp_map:.6g} nats")
     return th_map, lp_map, info
 
 
@@ -319,8 +319,8 @@ def _multi_start(logpost, scales, rng, n_random, n_prior, n_draws, log, n_global
         results = sorted(fine, key=lambda z: -z[0])
     best_lp, best = results[0][:2]
     log(f"least squares from {len(starts)} starts and {len(searches)} global searches (log-posteriors "
-        f"on the ranking copies, best first: "
-        f"{[round(v, 1) for v in ranked_lps[:4]]}); refined best {best_lp:.6g}")
+        f"in nats on the ranking copies, best first: "
+        f"{[round(v, 1) for v in ranked_lps[:4]]}); refined best {best_lp:.6g} nats")
     return best, best_lp, {"start": "search", "starts_log_prob_ranked": ranked_lps,
                            "refined_starts_log_prob": [float(v) for v in start_lps],
                            "heuristic": h0, "global_generations": generations,

@@ -208,7 +208,7 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
     theta_map, lp_map, map_info = find_map(logpost, scales, rng, cfg.n_random_starts,
                                            cfg.n_prior_starts, log=log, n_global=cfg.n_global_starts,
                                            start=start)
-    log(f"MAP log-posterior {lp_map:.6g}")
+    log(f"MAP log-posterior {lp_map:.6g} nats")
     # from here on a Ctrl-C is only noted and raised at the next step or chunk (run_steps): one
     # raised between chunks could land in a finaliser, where Python prints it and goes on
     intr.defer = True
