@@ -223,6 +223,15 @@ def _bad_cases():
             return c
         return b
 
+    def latin1(r):
+        """h2 with an extra text column whose line 8 holds a Latin-1 micro sign."""
+        c = make_campaign(r)
+        lines = _csv().splitlines()
+        rows = [lines[0] + ",note"] + [ln + (",\xb5m" if i == 8 else ",ok") for i, ln in
+                                       enumerate(lines[1:], 2)]
+        (c / "tests" / "h2.csv").write_bytes(("\n".join(rows) + "\n").encode("latin-1"))
+        return c
+
     def with_bom(r):
         c = make_campaign(r)
         p = c / "campaign.toml"
@@ -258,6 +267,8 @@ def _bad_cases():
         ("overflow in SI", file_case(csv_with(7, 2, "1e308")),
          ["h2.csv", "data row 7, force: 1e+308 kN overflows when converted to SI"]),
         ("BOM", with_bom, ["campaign.toml", "not valid TOML", "byte-order mark (BOM)"]),
+        # a Latin-1 byte: pandas named "position 3" of its buffer, no line (until 2026-12-05)
+        ("latin-1", latin1, ["h2.csv, line 8: not UTF-8 text; save the file as UTF-8"]),
         ("empty file", file_case(""), ["h2.csv", "empty"]),
         ("json unit contradicts", arts(_arts_json(units={"displacement units": "mm"})),
          ["r.json.gz", "displacement unit 'mm'", "units.displacement = 'in'"]),

@@ -112,6 +112,12 @@ def test_bad_json(files, capsys):
     P.write_text("{not json")
     assert main(["simulate", "--params", str(P), "--input", str(X), "--out", str(F)]) == 2
     assert "not valid JSON" in capsys.readouterr().err
+    # a parameter given twice: json keeps the last silently (until 2026-12-05 simulated so)
+    P.write_text('{"fc_fwd": 100.0, "fc_fwd": 1000.0}')
+    assert main(["simulate", "--params", str(P), "--input", str(X), "--out", str(F)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{P}, key fc_fwd: given twice" in err, err
+    assert not F.exists()
 
 
 @pytest.mark.parametrize("out", ["X.csv", "P.json", "P"])

@@ -66,7 +66,10 @@ def read_csv(path, columns: dict[str, str], optional: dict[str, str] | None = No
                          skip_blank_lines=False)
     except pd.errors.EmptyDataError:
         raise InputError(f"{path}: the file is empty") from None
-    except (pd.errors.ParserError, UnicodeDecodeError) as e:
+    except UnicodeDecodeError:      # pandas names a position in its own buffer: find the line
+        raise InputError(f"{path}{_first_non_utf8_line(path)}: not UTF-8 text; save the file as "
+                         "UTF-8 (e.g. a Latin-1 degree sign or micro sign)") from None
+    except pd.errors.ParserError as e:
         raise InputError(f"{path}: not a readable CSV file ({' '.join(str(e).split())})") from None
     except (OSError, EOFError, zlib.error) as e:     # a damaged or truncated .gz, or I/O
         what = "not a readable compressed file" if path.suffix.lower() == ".gz" else "cannot read"
@@ -97,6 +100,21 @@ def read_csv(path, columns: dict[str, str], optional: dict[str, str] | None = No
     if "time" in out:        # named by the file's own line (blank lines counted)
         check_time(path, out["time"], lines=df.index.to_numpy() + 2)
     return out
+
+
+def _first_non_utf8_line(path) -> str:
+    """', line N' of the first line of a (possibly gzipped) file that is not UTF-8, or ''."""
+    opener = gzip.open if Path(path).suffix.lower() == ".gz" else open
+    try:
+        with opener(path, "rb") as f:
+            for n, line in enumerate(f, 1):
+                try:
+                    line.decode("utf-8")
+                except UnicodeDecodeError:
+                    return f", line {n}"
+    except (OSError, EOFError, zlib.error):
+        pass
+    return ""
 
 
 def _header(path) -> list[str]:

@@ -29,8 +29,14 @@ def read_params(path) -> tuple[dict, dict | None]:
     path = Path(path)
     if not_a_file(path):
         raise InputError(f"{path}: {not_a_file(path)}")
+    def no_repeats(pairs):
+        keys = [k for k, _ in pairs]
+        rep = next((k for i, k in enumerate(keys) if k in keys[:i]), None)
+        if rep is not None:     # json keeps the last silently; which one was meant?
+            raise InputError(f"{path}, key {rep}: given twice; give each parameter once")
+        return dict(pairs)
     try:
-        doc = json.loads(path.read_text())
+        doc = json.loads(path.read_text(), object_pairs_hook=no_repeats)
     except json.JSONDecodeError as e:
         raise InputError(f"{path}: not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})") from None
     except UnicodeDecodeError:
