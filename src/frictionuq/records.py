@@ -50,6 +50,11 @@ def _numeric_column(path, df: pd.DataFrame, header: str, logical: str) -> np.nda
     return num.to_numpy(dtype=float)
 
 
+def _open(path, mode="rt", **kw):
+    """open(), or gzip.open() for a .gz file (records may be stored compressed)."""
+    return (gzip.open if Path(path).suffix.lower() == ".gz" else open)(path, mode, **kw)
+
+
 def read_csv(path, columns: dict[str, str], optional: dict[str, str] | None = None
              ) -> dict[str, np.ndarray]:
     """Columns of a CSV file: `columns` maps a logical name (time, displacement, ...) to the
@@ -104,9 +109,8 @@ def read_csv(path, columns: dict[str, str], optional: dict[str, str] | None = No
 
 def _first_non_utf8_line(path) -> str:
     """', line N' of the first line of a (possibly gzipped) file that is not UTF-8, or ''."""
-    opener = gzip.open if Path(path).suffix.lower() == ".gz" else open
     try:
-        with opener(path, "rb") as f:
+        with _open(path, "rb") as f:
             for n, line in enumerate(f, 1):
                 try:
                     line.decode("utf-8")
@@ -120,8 +124,7 @@ def _first_non_utf8_line(path) -> str:
 def _header(path) -> list[str]:
     """The CSV's header row as written (its first non-blank line)."""
     import csv
-    opener = gzip.open if Path(path).suffix.lower() == ".gz" else open
-    with opener(path, "rt", newline="", encoding="utf-8", errors="replace") as f:
+    with _open(path, "rt", newline="", encoding="utf-8", errors="replace") as f:
         for row in csv.reader(f):
             if any(c.strip() for c in row):
                 return row
@@ -141,8 +144,7 @@ def check_time(path, t: np.ndarray, line_offset: int = 2, what: str = "line", li
 
 def _load_json(path: Path):
     try:
-        opener = gzip.open if path.name.endswith(".gz") else open
-        with opener(path, "rt", encoding="utf-8") as f:
+        with _open(path, "rt", encoding="utf-8") as f:
             return json.load(f)
     except (OSError, EOFError, UnicodeDecodeError, zlib.error) as e:
         raise InputError(f"{path}: cannot read ({' '.join(str(e).split())})") from None

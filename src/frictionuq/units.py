@@ -11,12 +11,13 @@ from .errors import unknown
 
 # Exact definitions: 1 in = 0.0254 m (international inch, 1959); 1 lbf = 4.4482216152605 N
 # (avoirdupois pound x standard gravity 9.80665 m/s^2); 1 kip = 1000 lbf; 1 psi = 1 lbf/in^2.
-#: a drive amplitude (largest |x - median x|) or a length option above this is refused: no damper
-#: test moves a metre; it is millimetres given as metres (inputs are in SI)
-AMPLITUDE_PLAUSIBLE_M = 1.0
 LBF = 4.4482216152605
 INCH = 0.0254
 PSI = LBF / INCH**2
+
+#: a drive amplitude (largest |x - median x|) or a length option above this is refused: no damper
+#: test moves a metre; it is millimetres given as metres (inputs are in SI)
+AMPLITUDE_PLAUSIBLE_M = 1.0
 
 UNITS: dict[str, dict[str, float]] = {
     "time": {"s": 1.0, "ms": 1e-3},

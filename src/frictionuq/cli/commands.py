@@ -146,27 +146,23 @@ def _cmd_advantage(a):
 
 
 def _cmd_compare(a):
-    from ..errors import InputError, unknown
+    from ..errors import InputError
     from ..infer.compare import compare_campaign, format_table
     from ..infer.fit import FitConfig
     samp = _sampler_config(a)
     models = a.model or ["three_stage", "lugre"]
-    from ..params import MODELS
-    for m in models:
-        if m not in MODELS:
-            raise InputError(unknown("model", m, MODELS))
     if len(set(models)) != len(models):
         raise InputError(f"--model {next(m for i, m in enumerate(models) if m in models[:i])}: "
                          "given twice; give each model once")
-    if len(models) < 2:
-        raise InputError(f"--model {models[0]}: compare needs two models (e.g. --model three_stage "
-                         "--model lugre); one model's posterior is `frictionuq fit`")
     from ..infer.priors import prior_options
     pri = prior_options(a.prior)
     cfgs = {m: FitConfig(model=m, likelihood=a.likelihood, seed=a.seed, sampler=samp, priors=pri,
                          drive_lowpass=a.drive_lowpass, reversal=a.reversal,
                          force_offset=a.force_offset)
-            for m in models}
+            for m in models}        # an unknown model is refused here
+    if len(models) < 2:
+        raise InputError(f"--model {models[0]}: compare needs two models (e.g. --model three_stage "
+                         "--model lugre); one model's posterior is `frictionuq fit`")
     r = compare_campaign(a.campaign, a.out, cfgs, kinds=a.kind, tests=a.test, seed=a.seed,
                          offset=a.offset, log=lambda m: print(m, file=sys.stderr), jobs=a.jobs)
     print(format_table(r))
