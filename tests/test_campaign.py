@@ -250,6 +250,9 @@ def _bad_cases():
         ("semicolons", file_case(_csv().replace(",", ";")), ["h2.csv", "missing column 'time'",
                                                             "looks ';'-separated"]),
         ("non-numeric cell", file_case(csv_with(7, 2, "abc")), ["h2.csv", "line 8", "force", "'abc' is not a number"]),
+        # a row with a value too many: until 2026-12-05 pandas' "Error tokenizing data. C error"
+        ("extra value", file_case(csv_with(5, 2, "1.0,7")),
+         ["h2.csv, line 6: 5 values, but the header names 4 columns", "remove the extra values"]),
         ("empty cell", file_case(csv_with(5, 1, "")), ["h2.csv", "line 6", "displacement", "empty cell"]),
         ("NaN", file_case(csv_with(9, 2, "nan")), ["h2.csv", "line 10", "NaN"]),
         ("inf", file_case(csv_with(11, 1, "inf")), ["h2.csv", "line 12", "not finite"]),
@@ -275,7 +278,10 @@ def _bad_cases():
         ("json applied unit contradicts", arts(units_applied="psi"), ["r.json.gz", "applied unit 'lb'", "'psi'"]),
         ("json too few samples", arts(_arts_json(n=5)), ["r.json.gz", "5 samples"]),
         ("json non-numeric", arts({**_arts_json(), "data": _arts_json()["data"][:20] + [[0.1, "x", 0, 0, 0, 0]] * 3}),
-         ["r.json.gz", "row 20", "'x' is not a number"]),
+         ["r.json.gz", "row 20", 'column 1 (x [in]): "x" is not a number']),
+        # a JSON null: until 2026-12-05 "column x: nan is not finite" (null read as NaN)
+        ("json null", arts({**_arts_json(), "data": _arts_json()["data"][:20] + [[0.1, 0, None, 0, 0, 0]] * 3}),
+         ["r.json.gz", "row 20", "column 2 (F friction force [kip]): null is not a number"]),
         ("json missing key", arts({k: v for k, v in _arts_json().items() if k != "time units"}),
          ["r.json.gz", "missing key 'time units'"]),
     ]

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import gzip
 import json
+import re
 import zlib
 from pathlib import Path
 
@@ -75,7 +76,7 @@ def read_csv(path, columns: dict[str, str], optional: dict[str, str] | None = No
         raise InputError(f"{path}{_first_non_utf8_line(path)}: not UTF-8 text; save the file as "
                          "UTF-8 (e.g. a Latin-1 degree sign or micro sign)") from None
     except pd.errors.ParserError as e:
-        raise InputError(f"{path}: not a readable CSV file ({' '.join(str(e).split())})") from None
+        raise InputError(_parser_error(path, e)) from None
     except (OSError, EOFError, zlib.error) as e:     # a damaged or truncated .gz, or I/O
         what = "not a readable compressed file" if path.suffix.lower() == ".gz" else "cannot read"
         raise InputError(f"{path}: {what} ({' '.join(str(e).split()) or type(e).__name__})") from None
@@ -105,6 +106,16 @@ def read_csv(path, columns: dict[str, str], optional: dict[str, str] | None = No
     if "time" in out:        # named by the file's own line (blank lines counted)
         check_time(path, out["time"], lines=df.index.to_numpy() + 2)
     return out
+
+
+def _parser_error(path, e: Exception) -> str:
+    """pandas' tokenizer message in the file's terms (its line numbers are the file's own)."""
+    m = re.search(r"Expected (\d+) fields in line (\d+), saw (\d+)", str(e))
+    if m:
+        want, line, saw = m.groups()
+        return (f"{path}, line {line}: {saw} values, but the header names {want} columns; "
+                "remove the extra values or name their column in the header")
+    return f"{path}: not a readable CSV file ({' '.join(str(e).split())})"
 
 
 def _first_non_utf8_line(path) -> str:
@@ -152,6 +163,21 @@ def _load_json(path: Path):
         raise InputError(f"{path}: not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})") from None
 
 
+ARTS_NAMES = ("t [s]", "x [in]", "F friction force [kip]", "v [in/s]", "F_act1 [lb]", "F_act2 [lb]")
+
+
+def _arts_column(j: int) -> str:
+    return f"column {j} ({ARTS_NAMES[j]})"
+
+
+def _json_value(v) -> str:
+    """A cell as JSON writes it (null, true, "text", 1.5), so the message matches the file."""
+    try:
+        return json.dumps(v)
+    except (TypeError, ValueError):     # pragma: no cover - json.load gives JSON values only
+        return repr(v)
+
+
 def read_arts_json(path) -> tuple[dict[str, np.ndarray], dict[str, str], dict]:
     """An ARTS-format JSON record -> (columns {time, displacement, force, applied} in the
     record's units, the record's units {time, displacement, force, applied}, other metadata)."""
@@ -186,14 +212,16 @@ def read_arts_json(path) -> tuple[dict[str, np.ndarray], dict[str, str], dict]:
                 raise InputError(f"{path}, key data, row {i}: expected {ARTS_COLUMNS} values "
                                  "(t, x, F, v, F_act1, F_act2)")
             for j, v in enumerate(r):
-                if isinstance(v, bool) or not isinstance(v, (int, float)):
-                    raise InputError(f"{path}, key data, row {i}, column {j}: {v!r} is not a number")
+                if v is None or isinstance(v, bool) or not isinstance(v, (int, float)):
+                    raise InputError(f"{path}, key data, row {i}, {_arts_column(j)}: "
+                                     f"{_json_value(v)} is not a number")
         raise InputError(f"{path}, key data: rows are not numeric")  # pragma: no cover
-    names = ("t", "x", "F", "v", "F_act1", "F_act2")
     fin = np.isfinite(a)
     if not fin.all():
         i, j = map(int, np.argwhere(~fin)[0])
-        raise InputError(f"{path}, key data, row {i}, column {names[j]}: {a[i, j]} is not finite")
+        v = rows[i][j]
+        what = "is not a number" if v is None else "is not finite"
+        raise InputError(f"{path}, key data, row {i}, {_arts_column(j)}: {_json_value(v)} {what}")
     cols = {"time": a[:, 0], "displacement": a[:, 1], "force": a[:, 2],
             "applied": np.abs(a[:, 4]) + np.abs(a[:, 5])}
     meta = {k: d[k] for k in ("dt", "sampling freq") if k in d}
