@@ -108,7 +108,7 @@ def test_pressure_campaign_gives_N_per_Pa_and_the_mfd_table():
 
 
 def test_law_rows_at_interpolated_forces(fit_dir, monkeypatch):
-    mod = types.ModuleType("frictionuq.infer.law")
+    mod = types.ModuleType("frictionuq.infer.lawdraws")
     calls = []
 
     def draws_at(fit_dir, applied_si, n, rng):
@@ -116,7 +116,7 @@ def test_law_rows_at_interpolated_forces(fit_dir, monkeypatch):
         return {"fc_fwd": np.full(n, 140.0 * applied_si), "fc_bwd": np.full(n, 120.0 * applied_si)}, \
             "three_stage", ()
     mod.draws_at = draws_at
-    monkeypatch.setitem(sys.modules, "frictionuq.infer.law", mod)
+    monkeypatch.setitem(sys.modules, "frictionuq.infer.lawdraws", mod)
     df = advantage(fit_dir)
     law = df[df["source"] == "force-dependence law"]
     assert calls == [pytest.approx(math.sqrt(133 * 267))]
@@ -129,14 +129,14 @@ def test_law_rows_pinned_at_the_prior_box_are_flagged(fit_dir, monkeypatch, caps
     """Law draws clipped to the prior box (draws_at clips them) give an interval that is the box,
     not an estimate: the rows say so (at_bounds) and the table marks them; posterior rows do not."""
     from frictionuq.advantage import AT_BOUNDS_FLAG, format_table
-    mod = types.ModuleType("frictionuq.infer.law")
+    mod = types.ModuleType("frictionuq.infer.lawdraws")
 
     def draws_at(fit_dir, applied_si, n, rng):
         z = np.random.default_rng(0).normal(0, 1, n)
         pinned = np.clip(140.0 * applied_si * np.exp(z), 100.0 * applied_si, 200.0 * applied_si)
         return {"fc_fwd": pinned, "fc_bwd": 120.0 * applied_si * np.exp(0.01 * z)}, "three_stage", ()
     mod.draws_at = draws_at
-    monkeypatch.setitem(sys.modules, "frictionuq.infer.law", mod)
+    monkeypatch.setitem(sys.modules, "frictionuq.infer.lawdraws", mod)
     df = advantage(fit_dir)
     law = df[df["source"] == "force-dependence law"].set_index("direction")
     assert law.loc["fwd", "at_bounds"] > 0.5          # |z| > ln(1.4) or ln(0.71): about 65 %

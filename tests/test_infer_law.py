@@ -11,7 +11,7 @@ import pytest
 
 from frictionuq import azadapter
 from frictionuq.errors import InputError
-from frictionuq.infer import law
+from frictionuq.infer import law, lawdraws
 
 A = np.array([20.0, 22.0, 25.0, 35.0, 70.0, 80.0]) * 4.448    # N, the ARTS d1 levels
 
@@ -86,7 +86,7 @@ def test_fit_law_and_draws_at(tmp_path):
     assert "package_version" in doc and doc["seed"] == 2
     # an untested force between two levels: the law's value, with an honest spread
     a_new = 50.0 * 4.448
-    draws, model, effects = law.draws_at(d, a_new, 2000, np.random.default_rng(0))
+    draws, model, effects = lawdraws.draws_at(d, a_new, 2000, np.random.default_rng(0))
     assert model == "three_stage" and effects == ()
     med = np.median(draws["fc_fwd"])
     assert abs(med / (1.5 * a_new) - 1) < 0.05
@@ -99,7 +99,7 @@ def test_fit_law_and_draws_at(tmp_path):
     # far outside the tested range the law's values are clipped to the prior box and the
     # physical bounds, never passed on to the simulator out of range
     from frictionuq import params as P
-    far, _, _ = law.draws_at(d, 1e9, 500, np.random.default_rng(1))
+    far, _, _ = lawdraws.draws_at(d, 1e9, 500, np.random.default_rng(1))
     for name, v in far.items():
         assert np.all((v >= P.PARAMS[name].lower) & (v <= P.PARAMS[name].upper)), name
     # reproducible: same seed, same law file
@@ -119,7 +119,7 @@ def test_law_needs_levels_and_a_folder(tmp_path):
     with pytest.raises(InputError, match="summary.json"):
         law.fit_law(tmp_path)
     with pytest.raises(InputError, match="law.json"):
-        law.draws_at(tmp_path, 100.0, 10, np.random.default_rng(0))
+        lawdraws.draws_at(tmp_path, 100.0, 10, np.random.default_rng(0))
 
 
 def test_a_by_test_folder_with_one_force_is_refused(tmp_path):
@@ -139,7 +139,7 @@ def test_zero_force_level_is_left_out_of_the_law(tmp_path):
     doc = law.fit_law(d, seed=3)
     assert [L["applied"] for L in doc["levels"]] == [100.0, 200.0, 300.0]
     assert doc["excluded_levels"][0]["id"].startswith("applied-0")
-    draws, _, _ = law.draws_at(d, 150.0, 100, np.random.default_rng(0))
+    draws, _, _ = lawdraws.draws_at(d, 150.0, 100, np.random.default_rng(0))
     assert np.all(np.isfinite(draws["fc_fwd"]))
 
 
@@ -155,13 +155,13 @@ def test_scatter_normals_follow_the_levels_departures_from_their_laws():
                          "k2": np.exp(np.full(50, other[i]))}} for i in range(6)]
     laws = {n: {"family": "constant", "log_space": True, "beta_draws": [[0.0]], "tau_draws": [1.0]}
             for n in ("fc_fwd", "fs_fwd", "k2")}
-    z = law.scatter_normals({"laws": laws}, levels, ["fc_fwd", "fs_fwd", "k2"], 4000,
+    z = lawdraws.scatter_normals({"laws": laws}, levels, ["fc_fwd", "fs_fwd", "k2"], 4000,
                             np.random.default_rng(0))
     assert np.allclose(z[:, 0], z[:, 1], atol=1e-9)
     r = np.corrcoef(z.T)
     assert abs(r[0, 2] - np.corrcoef(dep, other)[0, 1]) < 0.1     # the departures' correlation
     assert np.allclose(z.std(axis=0), 1.0, atol=0.05)
     # with too few levels to estimate a correlation: independent normals
-    z2 = law.scatter_normals({"laws": laws}, levels[:2], ["fc_fwd", "fs_fwd", "k2"], 4000,
+    z2 = lawdraws.scatter_normals({"laws": laws}, levels[:2], ["fc_fwd", "fs_fwd", "k2"], 4000,
                              np.random.default_rng(0))
     assert abs(np.corrcoef(z2[:, 0], z2[:, 1])[0, 1]) < 0.1

@@ -136,14 +136,16 @@ def test_cycle_energy_is_the_loop_area(fit_dir):
 
 
 def _fake_law(monkeypatch, params, calls):
-    mod = types.ModuleType("frictionuq.infer.law")
+    mod = types.ModuleType("frictionuq.infer.lawdraws")
 
     def draws_at(fit_dir, applied_si, n, rng):
         calls.append(applied_si)
         return {k: np.full(n, float(v)) for k, v in params.items()}, "three_stage", ()
     mod.draws_at = draws_at
-    mod.law_entry = lambda fit_dir: {"file": "law.json", "family": "fake", "sha256": "0" * 64}
-    monkeypatch.setitem(sys.modules, "frictionuq.infer.law", mod)
+    monkeypatch.setitem(sys.modules, "frictionuq.infer.lawdraws", mod)
+    from frictionuq.infer import law
+    monkeypatch.setattr(law, "law_entry",
+                        lambda fit_dir: {"file": "law.json", "family": "fake", "sha256": "0" * 64})
 
 
 def test_law_draws_between_levels_and_coulomb_energy(fit_dir, tmp_path, monkeypatch):

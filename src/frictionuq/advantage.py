@@ -161,7 +161,7 @@ def _law_rows(fit_dir, summary, unit, geo, device) -> list[dict]:
     """Rows at the geometric midpoints of consecutive fitted forces, from the law (none when
     the folder has no law)."""
     try:
-        from .infer.law import draws_at
+        from .infer.lawdraws import draws_at
     except ImportError:
         return []
     levels = sorted({float(f["applied"]) for f in summary["fits"]

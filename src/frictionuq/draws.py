@@ -5,7 +5,7 @@ If F is a fitted level (summary.json fits[i]["applied"]; the nearest level withi
 REL_TOL, so that a level typed as `table` or a fit id shows it, to 4-6 digits, is that level), the joint
 posterior draws of that fit (free parameters from posterior.nc, fixed ones from fit.json), with
 its model and effects; several fits at the same level (`fit --by test`) are pooled with equal
-weight. Otherwise the force-dependence law of the folder (frictionuq.infer.law.draws_at); without
+weight. Otherwise the force-dependence law of the folder (frictionuq.infer.lawdraws.draws_at); without
 a law the request is refused.
 Each draw carries the measurement noise (sigma_noise, noise_phi, and the ARMA(1,1) MA
 coefficient where the fit has one) of one of its fit's tests, picked at random, from the same
@@ -133,7 +133,7 @@ def choose_draws(fit_dir, applied_si: float, n: int, rng, summary: dict | None =
     levels = fitted_levels(summary)
     lv, shown = _shown(levels, summary), _shown([a], summary)
     try:
-        from .infer.law import draws_at
+        from .infer.lawdraws import draws_at
     except ImportError:
         raise InputError(f"{fit_dir}: applied force {shown} is not a fitted level (fitted: {lv}) "
                          "and no force-dependence law is available in this version") from None

@@ -7,7 +7,8 @@ import numpy as np
 from ... import published as PUB
 from ... import units as U
 from ...errors import InputError
-from ...infer.law import FORCE_DEPENDENT, LAW_FILE, law_values, load_law
+from ...infer.law import FORCE_DEPENDENT, LAW_FILE, load_law
+from ...infer.lawdraws import law_values
 from .. import blocks as B
 from ..figures_levels import advantage_figure, across_figure, display
 from ..tables import DASH, interval, num, scaled, table
