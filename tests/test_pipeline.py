@@ -216,6 +216,28 @@ def test_killed_run_resumes_its_fit(tmp_path):
             or (io_error and "starting afresh" in text)), text[:3000]
 
 
+def _ctrl_c_once_the_fits_sample(wf, options, check=lambda: True):
+    """`frictionuq run WF OPTIONS` in its own session, Ctrl-C (SIGINT to its process group) once
+    both fits have burnt in a round and `check()` holds: exit 130 with the one line."""
+    proc = subprocess.Popen([sys.executable, "-m", "frictionuq.cli", "run", str(wf.path), *options],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    logs = [T.task_log_path(wf.out, n) for n in ("fit:applied-36lb", "fit:applied-0lb")]
+    deadline = time.time() + 240
+    try:
+        while not all(f.is_file() and "burn-in round 1" in f.read_text() for f in logs):
+            assert time.time() < deadline, "the fits did not reach their burn-in in time"
+            time.sleep(0.5)
+        assert check()
+        os.killpg(proc.pid, signal.SIGINT)
+        err = proc.communicate(timeout=120)[1]
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "interrupted" in err.strip().splitlines()[-1], err
+
+
 def test_ctrl_c_stops_the_workers_and_starts_no_queued_task(tmp_path):
     """run -j 2 with four sampling tasks (two fits, two comparisons) that would never converge:
     Ctrl-C (SIGINT to the process group) while the fits burn in. Before, the workers took it as
@@ -235,22 +257,7 @@ min_steps = 100000
 """)
     wf = load_workflow(p)
     assert sum(t.heavy for t in plan(wf).values()) == 4
-    proc = subprocess.Popen([sys.executable, "-m", "frictionuq.cli", "run", str(p), "-j", "2"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
-    logs = [T.task_log_path(wf.out, n) for n in ("fit:applied-36lb", "fit:applied-0lb")]
-    deadline = time.time() + 240
-    try:
-        while not all(f.is_file() and "burn-in round 1" in f.read_text() for f in logs):
-            assert time.time() < deadline, "the fits did not reach their burn-in in time"
-            time.sleep(0.5)
-        os.killpg(proc.pid, signal.SIGINT)
-        err = proc.communicate(timeout=120)[1]
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-    assert proc.returncode == 130, err
-    assert "Traceback" not in err and "interrupted" in err.strip().splitlines()[-1], err
+    _ctrl_c_once_the_fits_sample(wf, ["-j", "2"])
     started = sorted(f.name for f in (wf.out / "logs" / "tasks").iterdir())
     assert not [n for n in started if n.startswith("compare")], started
     assert not any(cache.state(wf.out, plan(wf)[n])[0] for n in ("fit:applied-36lb", "fit:applied-0lb"))
@@ -269,6 +276,39 @@ def test_fits_on_a_dask_localcluster(first_run):
     # reproducible: the same seed gives the same posterior on the cluster as locally
     for a, b in zip(before["fits"], after["fits"]):
         assert a["parameters"]["fc_fwd"]["mean"] == b["parameters"]["fc_fwd"]["mean"]
+
+
+def test_ctrl_c_stops_the_fits_running_on_a_dask_cluster(tmp_path):
+    """Ctrl-C of `run --scheduler` while two never-converging fits sample on the cluster. Until
+    2026-12-05 the runner closed its client and exited, and the cluster's workers fitted on (no
+    signal reaches a Dask task, and cancelling a running future only drops its result): here for
+    ever. Now the runner sets the run's stop event and each sampler stops between two steps, so
+    the workers go idle within seconds."""
+    import logging
+    from dask.distributed import Client, LocalCluster
+    p = _workflow(tmp_path, steps=100000)
+    p.write_text(p.read_text().replace("min_steps = 100\n", "min_steps = 100000\n"))
+    wf = load_workflow(p)
+
+    def busy(client) -> float:
+        """CPU seconds the cluster's workers used in the next 3 s."""
+        def cpu():
+            import psutil
+            t = psutil.Process().cpu_times()
+            return t.user + t.system
+        a = sum(client.run(cpu).values())
+        time.sleep(3.0)
+        return sum(client.run(cpu).values()) - a
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                      silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
+        # both fits sample before the Ctrl-C (about 6 CPU seconds in 3 s)
+        _ctrl_c_once_the_fits_sample(wf, ["--scheduler", cluster.scheduler_address],
+                                     check=lambda: busy(client) > 2.0)
+        deadline = time.time() + 60
+        while (used := busy(client)) > 1.0:
+            assert time.time() < deadline, f"the cluster still fits: {used:.1f} CPU s in 3 s"
+    assert not any(cache.state(wf.out, plan(wf)[n])[0] for n in ("fit:applied-36lb", "fit:applied-0lb"))
 
 
 def test_a_ground_motion_from_the_users_own_file(first_run):

@@ -3,10 +3,14 @@ KeyboardInterrupt Python swallows (one raised inside a finaliser) is raised agai
 check; and only noted, never raised, inside code that must not see it (emcee's steps). Used by
 the sampler (between steps and chunks) and the workflow runner (between tasks); the worker pools
 (workers.Workers, the runner's) stop their processes with worker_initializer, call_in_worker and
-stop_pool."""
+stop_pool; a task on a Dask cluster, where no signal reaches it, with call_stoppable."""
 from __future__ import annotations
 
 import contextlib
+import threading
+
+#: stop requests of tasks running on a Dask worker's threads (call_stoppable): thread id -> event
+_STOPS: dict[int, threading.Event] = {}
 
 
 class Interrupts:
@@ -20,11 +24,17 @@ class Interrupts:
     raises it again at the next step, chunk or task (in `run` one was swallowed 1 time in 4)."""
 
     def __init__(self):
-        self.hit = False
+        self._hit = False
         self.defer = False
+        self._stop = _STOPS.get(threading.get_ident())     # set when run by call_stoppable
+
+    @property
+    def hit(self) -> bool:
+        """A Ctrl-C or SIGTERM was noted, or (a task on a Dask worker) its run asked it to stop."""
+        return self._hit or (self._stop is not None and self._stop.is_set())
 
     def handler(self, signum, frame):
-        self.hit = True
+        self._hit = True
         if not self.defer:
             raise KeyboardInterrupt
 
@@ -52,28 +62,34 @@ def interrupts():
 
 
 @contextlib.contextmanager
-def sigint_ignored():
-    """SIGINT ignored for the block (on the main thread; elsewhere a no-op): processes started in
-    it inherit SIG_IGN, and Python leaves an ignored SIGINT ignored at start-up, so a Ctrl-C
-    while a spawned worker imports cannot print its traceback (workers.Workers)."""
+def sigint_held():
+    """SIGINT blocked on the main thread for the block (elsewhere a no-op). A process started in
+    it inherits the blocked signal (fork and exec keep the mask), so a Ctrl-C while a spawned
+    worker imports stays pending there until worker_initializer ignores it: no traceback from the
+    worker (workers.Workers, the runner's pool). In this process a Ctrl-C during the block is
+    held, not lost: it is delivered when the block ends. Until 2026-12-05 SIGINT was ignored
+    (SIG_IGN) for the block instead, and a Ctrl-C while the workers started was dropped: the
+    command ran to its end (CI, test_ctrl_c_with_worker_processes_is_one_line)."""
     import signal
-    try:
-        old = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    except ValueError:
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, old)
+        if signal.SIGINT not in old:
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
 def worker_initializer():
     """A spawned pool worker ignores SIGINT: Ctrl-C at a terminal reaches the whole process group,
     and it is the parent's to handle (an idle worker printed a KeyboardInterrupt traceback); the
-    interrupted parent stops its workers with SIGTERM (stop_pool)."""
+    interrupted parent stops its workers with SIGTERM (stop_pool). A Ctrl-C held while the worker
+    started (it was born with SIGINT blocked, sigint_held) is discarded here."""
     import signal
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
 def call_in_worker(fn, *args):
@@ -109,3 +125,39 @@ def stop_pool(pool, grace: float = 20.0) -> None:
             p.kill()
             p.join(5.0)
     pool.shutdown(wait=True, cancel_futures=True)
+
+
+class Stopped(RuntimeError):
+    """A task on a Dask worker stopped by its run's stop event (call_stoppable)."""
+
+
+def call_stoppable(fn, *args, stop: str):
+    """fn(*args) on a Dask worker thread, stopped when the cluster's Event named `stop` is set
+    (the interrupted runner sets it, pipeline.runner._Pool). No signal reaches a task on a Dask
+    worker, and cancelling its future only drops the result: the thread ran on, a sampler to its
+    step cap (for ever with no convergence), holding the cluster's worker. A watcher thread turns
+    the event into the stop request that Interrupts.check() raises between two sampler steps,
+    every finished step stored; the MAP search before the sampling runs to its end."""
+    from distributed import Event, get_client
+    event = Event(stop, client=get_client())    # resolved here: the watcher's thread has no client
+    request, finished = threading.Event(), threading.Event()
+    me = threading.get_ident()
+
+    def watch():
+        while not finished.is_set():
+            try:
+                if event.wait(timeout=1.0):
+                    request.set()
+                    return
+            except Exception:          # the scheduler went away: nothing left to wait for
+                return
+
+    _STOPS[me] = request
+    threading.Thread(target=watch, name=f"frictionuq-stop-{stop}", daemon=True).start()
+    try:
+        return fn(*args)
+    except KeyboardInterrupt:
+        raise Stopped(f"stopped: the run was interrupted ({stop})") from None
+    finally:
+        finished.set()
+        _STOPS.pop(me, None)

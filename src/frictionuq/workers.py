@@ -65,13 +65,13 @@ class Workers:
         if self.jobs == 1 or len(items) < 2:
             return [fn(x) for x in items]
         from concurrent.futures import FIRST_EXCEPTION, wait
-        from .interrupts import call_in_worker, interrupts, sigint_ignored
+        from .interrupts import call_in_worker, interrupts, sigint_held
         if self._pool is None:
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
             self._pool = ProcessPoolExecutor(self.jobs, mp_context=multiprocessing.get_context("spawn"),
                                              initializer=_init_worker)
-        with sigint_ignored():       # the workers start (in submit) ignoring Ctrl-C from birth
+        with sigint_held():       # the workers start (in submit) holding Ctrl-C from birth
             futures = [self._pool.submit(call_in_worker, fn, x) for x in items]
         # wait in short slices, so that a Ctrl-C or SIGTERM the pool's internals swallowed (one
         # landing in a finaliser) still stops the map at once: interrupts() notes it, check()

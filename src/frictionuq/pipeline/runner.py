@@ -120,6 +120,7 @@ class _Pool:
 
     def __init__(self, jobs: int, scheduler: str | None):
         self.client = self.pool = None
+        self.futures = []
         self.threads = max(1, (os.cpu_count() or 1) // max(1, jobs))
         if scheduler:
             from dask.distributed import Client
@@ -132,6 +133,8 @@ class _Pool:
                 raise InputError(f"--scheduler {scheduler}: cannot connect to a Dask scheduler "
                                  f"there ({' '.join(str(e).split())})") from None
             self.threads = None          # the cluster's own configuration
+            import uuid
+            self.stop = f"frictionuq-stop-{uuid.uuid4().hex}"   # set when the run is interrupted
         elif jobs > 1:
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
@@ -145,9 +148,13 @@ class _Pool:
 
     def submit(self, wf, task):
         if self.client is not None:
-            return self.client.submit(execute, wf, task, self.threads, pure=False, key=f"{task.name}-{task.key[:12]}")
-        from ..interrupts import call_in_worker, sigint_ignored
-        with sigint_ignored():       # a worker started here ignores Ctrl-C from birth
+            from ..interrupts import call_stoppable
+            fut = self.client.submit(call_stoppable, execute, wf, task, self.threads, stop=self.stop,
+                                     pure=False, key=f"{task.name}-{task.key[:12]}")
+            self.futures.append(fut)
+            return fut
+        from ..interrupts import call_in_worker, sigint_held
+        with sigint_held():       # a worker started here holds Ctrl-C from birth
             return self.pool.submit(call_in_worker, execute, wf, task, self.threads)
 
     def close(self, cancel: bool = False):
@@ -160,6 +167,13 @@ class _Pool:
             else:
                 self.pool.shutdown(wait=True)
         if self.client is not None:
+            if cancel:       # running tasks stop between two sampler steps, queued ones never start
+                from distributed import Event
+                try:
+                    Event(self.stop, client=self.client).set()
+                    self.client.cancel(self.futures)
+                except Exception:        # the scheduler is gone: nothing of ours runs there
+                    pass
             self.client.close()
 
 
