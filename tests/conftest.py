@@ -20,6 +20,16 @@ if int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")) > 1:
     os.environ.setdefault("NUMBA_NUM_THREADS", str(max(1, (os.cpu_count() or 1)
                                                         // int(os.environ["PYTEST_XDIST_WORKER_COUNT"]))))
 
+import signal
+
+# The Ctrl-C tests start commands as a terminal would, SIGINT at its default action. A suite run
+# in the background of a non-interactive shell (`nohup bash .ci/run &`) inherits SIGINT ignored,
+# Python keeps an inherited SIG_IGN, and so did every command the tests started: a Ctrl-C sent
+# before the command set its own handler was dropped (test_ctrl_c_with_worker_processes_is_one_line
+# failed twice on a 2-core Intel host, 2026-12-05; it passed where the signal came later).
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
 from pathlib import Path
 
 import pytest
