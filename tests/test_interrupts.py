@@ -51,11 +51,10 @@ def _sigint_state(q):
 
 def test_a_ctrl_c_while_the_workers_start_is_held_not_lost():
     """The worker pools start their processes inside interrupts.sigint_held. Until 2026-12-05
-    SIGINT was ignored there instead, and a Ctrl-C in that window was dropped: CI saw `compare
-    --jobs 2` run to its end after SIGINT (test above, on a 2-core Intel host). Now it is held
-    and delivered when the block ends, and a process spawned in the block is born with SIGINT
-    blocked (a Ctrl-C while it imports cannot print its traceback; worker_initializer then
-    ignores it)."""
+    SIGINT was ignored there instead, and the kernel dropped a Ctrl-C in that window: the command
+    ran on to its end. Now it is held and delivered when the block ends, and a process spawned
+    in the block is born with SIGINT blocked (a Ctrl-C while it imports cannot print its
+    traceback; worker_initializer then ignores it)."""
     import multiprocessing
     import time
     from frictionuq.interrupts import sigint_held

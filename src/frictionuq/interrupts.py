@@ -68,8 +68,8 @@ def sigint_held():
     worker imports stays pending there until worker_initializer ignores it: no traceback from the
     worker (workers.Workers, the runner's pool). In this process a Ctrl-C during the block is
     held, not lost: it is delivered when the block ends. Until 2026-12-05 SIGINT was ignored
-    (SIG_IGN) for the block instead, and a Ctrl-C while the workers started was dropped: the
-    command ran to its end (CI, test_ctrl_c_with_worker_processes_is_one_line)."""
+    (SIG_IGN) for the block instead, and the kernel dropped a Ctrl-C that came while the workers
+    started: the command then ran to its end (tests/test_interrupts.py)."""
     import signal
     if threading.current_thread() is not threading.main_thread():
         yield
