@@ -28,7 +28,8 @@ from .errors import InputError, not_a_file
 MIN_SAMPLES = 10
 ARTS_UNIT_KEYS = {"time": "time units", "displacement": "displacement units",
                   "force": "friction force units", "applied": "actuator force units"}
-ARTS_COLUMNS = 6
+ARTS_NAMES = ("t [s]", "x [in]", "F friction force [kip]", "v [in/s]", "F_act1 [lb]", "F_act2 [lb]")
+ARTS_COLUMNS = len(ARTS_NAMES)
 
 
 def _numeric_column(path, df: pd.DataFrame, header: str, logical: str) -> np.ndarray:
@@ -163,19 +164,9 @@ def _load_json(path: Path):
         raise InputError(f"{path}: not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})") from None
 
 
-ARTS_NAMES = ("t [s]", "x [in]", "F friction force [kip]", "v [in/s]", "F_act1 [lb]", "F_act2 [lb]")
-
-
-def _arts_column(j: int) -> str:
-    return f"column {j} ({ARTS_NAMES[j]})"
-
-
-def _json_value(v) -> str:
-    """A cell as JSON writes it (null, true, "text", 1.5), so the message matches the file."""
-    try:
-        return json.dumps(v)
-    except (TypeError, ValueError):     # pragma: no cover - json.load gives JSON values only
-        return repr(v)
+def _arts_cell(i: int, j: int, v) -> str:
+    """Where a cell is and what it holds, as JSON writes it (null, true, "text")."""
+    return f"row {i}, column {j} ({ARTS_NAMES[j]}): {json.dumps(v)}"
 
 
 def read_arts_json(path) -> tuple[dict[str, np.ndarray], dict[str, str], dict]:
@@ -210,18 +201,16 @@ def read_arts_json(path) -> tuple[dict[str, np.ndarray], dict[str, str], dict]:
         for i, r in enumerate(rows):
             if not isinstance(r, list) or len(r) != ARTS_COLUMNS:
                 raise InputError(f"{path}, key data, row {i}: expected {ARTS_COLUMNS} values "
-                                 "(t, x, F, v, F_act1, F_act2)")
+                                 f"({', '.join(ARTS_NAMES)})")
             for j, v in enumerate(r):
                 if v is None or isinstance(v, bool) or not isinstance(v, (int, float)):
-                    raise InputError(f"{path}, key data, row {i}, {_arts_column(j)}: "
-                                     f"{_json_value(v)} is not a number")
+                    raise InputError(f"{path}, key data, {_arts_cell(i, j, v)} is not a number")
         raise InputError(f"{path}, key data: rows are not numeric")  # pragma: no cover
     fin = np.isfinite(a)
     if not fin.all():
         i, j = map(int, np.argwhere(~fin)[0])
-        v = rows[i][j]
-        what = "is not a number" if v is None else "is not finite"
-        raise InputError(f"{path}, key data, row {i}, {_arts_column(j)}: {_json_value(v)} {what}")
+        what = "is not a number" if rows[i][j] is None else "is not finite"
+        raise InputError(f"{path}, key data, {_arts_cell(i, j, rows[i][j])} {what}")
     cols = {"time": a[:, 0], "displacement": a[:, 1], "force": a[:, 2],
             "applied": np.abs(a[:, 4]) + np.abs(a[:, 5])}
     meta = {k: d[k] for k in ("dt", "sampling freq") if k in d}
