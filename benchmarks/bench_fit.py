@@ -2,7 +2,8 @@
 
     .venv/bin/python benchmarks/bench_fit.py [--case twin|arts-d1|all] [--simulate-at raw|kept|both]
         [--sampler chains|ensemble|both] [--jobs 1|2|both] [--max-steps N] [--tests ID ...]
-        [--force-offset shared|per_test] [--temperatures L] [--samples-per-cycle N] [--out DIR]
+        [--force-offset shared|per_test] [--temperatures L] [--samples-per-cycle N]
+        [--confirm 1|2|both] [--out DIR]
 
 Cases:
   * `twin`     one applied force of the BRFD twin (data/brfd-twin, 267 N, all its tests: four
@@ -31,6 +32,9 @@ temperatures; 1, the default: none); with --sampler chains only (the ensemble's 
 not tempered).
 --samples-per-cycle: the decimation's kept rate as a multiple of each test's frequency
 (FitConfig.samples_per_cycle; default the CLI's 400; workflows/brfd-arts.toml uses 150).
+--confirm: the checks in a row at which the stopping rule must hold before the run stops
+(SamplerConfig.confirm_checks: 2, the default since 2026-12-05; 1, the rule before), or both
+side by side with their time ratio.
 Targets: under 2 minutes for the twin force level, under 10 minutes for all of brfd-arts-d1, on
 the 2-core machine. Run it on a quiet machine; the figures are in the README
 (current) and docs/log-calibration.md (every run).
@@ -62,20 +66,26 @@ SAMPLERS = {"chains": {},
             "ensemble": {"stored_run": "ensemble", "independence_weight": 0.5, "start_profile": False}}
 
 
+DEFAULT_CONFIRM = SamplerConfig().confirm_checks
+
+
 def run_name(case: str, simulate_at: str, sampler: str, jobs: int, force_offset: str,
-             temperatures: int = 1, samples_per_cycle: float | None = None) -> str:
+             temperatures: int = 1, samples_per_cycle: float | None = None,
+             confirm: int = DEFAULT_CONFIRM) -> str:
     """The folder of one benchmark fit under --out: every option that changes the fit in it."""
     return (f"{case}-{simulate_at}-{sampler}-j{jobs}-{force_offset}"
             + (f"-T{temperatures}" if temperatures > 1 else "")
-            + (f"-spc{samples_per_cycle:g}" if samples_per_cycle else ""))
+            + (f"-spc{samples_per_cycle:g}" if samples_per_cycle else "")
+            + (f"-c{confirm}" if confirm != DEFAULT_CONFIRM else ""))
 
 
 def run_tag(force_offset: str, temperatures: int = 1,
-            samples_per_cycle: float | None = None) -> str:
+            samples_per_cycle: float | None = None, confirm: int = DEFAULT_CONFIRM) -> str:
     """The printed label's options beyond the defaults (the rows' and the ratios' keys)."""
     return (("" if force_offset == "shared" else f", {force_offset} offsets")
             + ("" if temperatures == 1 else f", T{temperatures}")
-            + (f", {samples_per_cycle:g} per cycle" if samples_per_cycle else ""))
+            + (f", {samples_per_cycle:g} per cycle" if samples_per_cycle else "")
+            + ("" if confirm == DEFAULT_CONFIRM else f", confirm {confirm}"))
 
 
 def target_verdict(result: dict) -> str:
@@ -89,9 +99,10 @@ def target_verdict(result: dict) -> str:
 def run(case: str, out: Path, simulate_at: str = "raw", sampler: str = "chains",
         tests=None, jobs: int = 1, max_steps: int | None = None,
         force_offset: str = "shared", temperatures: int = 1,
-        samples_per_cycle: float | None = None) -> dict:
+        samples_per_cycle: float | None = None, confirm: int = DEFAULT_CONFIRM) -> dict:
     path, sel, target = CASES[case]
     caps = {"max_steps": max_steps} if max_steps else {}
+    caps["confirm_checks"] = confirm
     if temperatures > 1:
         caps["temperatures"] = temperatures
     cfg = FitConfig(tests=tuple(tests) if tests else sel.get("tests"), simulate_at=simulate_at,
@@ -100,7 +111,7 @@ def run(case: str, out: Path, simulate_at: str = "raw", sampler: str = "chains",
                     **({"samples_per_cycle": samples_per_cycle} if samples_per_cycle else {}))
     t0 = time.perf_counter()
     s = fit_campaign(path, out / run_name(case, simulate_at, sampler, jobs, force_offset,
-                                          temperatures, samples_per_cycle),
+                                          temperatures, samples_per_cycle, confirm),
                      by="applied",
                      config=cfg, jobs=jobs)
     wall = time.perf_counter() - t0
@@ -111,7 +122,7 @@ def run(case: str, out: Path, simulate_at: str = "raw", sampler: str = "chains",
         rhat = max(p["r_hat"] for p in free.values())
         rows.append((f["id"], f["seconds"], f["model_evaluations"], ess, rhat, f["converged"],
                      f["sampler_steps"], f["tau_max"]))
-    tag = run_tag(force_offset, temperatures, samples_per_cycle)
+    tag = run_tag(force_offset, temperatures, samples_per_cycle, confirm)
     return {"case": f"{case} ({simulate_at}, {sampler}, j{jobs}{tag})", "wall": wall, "target": target,
             "rows": rows}
 
@@ -132,6 +143,8 @@ def main(argv=None):
                     help="parallel tempering levels of the stored run's chains (1: none)")
     ap.add_argument("--samples-per-cycle", type=float, default=None,
                     help="the decimation's kept samples per cycle (default: FitConfig's, 400)")
+    ap.add_argument("--confirm", choices=["1", "2", "both"], default=str(DEFAULT_CONFIRM),
+                    help="checks in a row the stopping rule must hold at (default 2), or both")
     ap.add_argument("--out", default=None, help="keep the fit outputs here (default: temporary)")
     a = ap.parse_args(argv)
     if a.temperatures > 1 and a.sampler != "chains":
@@ -144,9 +157,10 @@ def main(argv=None):
         ats = ["raw", "kept"] if a.simulate_at == "both" else [a.simulate_at]
         sms = ["ensemble", "chains"] if a.sampler == "both" else [a.sampler]
         jbs = [1, 2] if a.jobs == "both" else [int(a.jobs)]
+        cfs = [1, 2] if a.confirm == "both" else [int(a.confirm)]
         results = [run(c, out, at, sm, a.tests, j, a.max_steps, a.force_offset, a.temperatures,
-                       a.samples_per_cycle)
-                   for c in cases for at in ats for sm in sms for j in jbs]
+                       a.samples_per_cycle, cf)
+                   for c in cases for at in ats for sm in sms for j in jbs for cf in cfs]
     print(f"{'fit':<42}{'wall s':>8}{'evals':>10}{'evals/s':>9}{'steps':>8}{'tau':>7}"
           f"{'ESS min':>9}{'R-hat':>7}{'ESS/s':>7}  converged")
     for r in results:
@@ -157,6 +171,15 @@ def main(argv=None):
               f"converged: {target_verdict(r)}, ratio {r['wall'] / r['target']:.2f})")
     w = {r["case"]: r["wall"] for r in results}
     tag = run_tag(a.force_offset, a.temperatures, a.samples_per_cycle)
+    if a.confirm == "both":
+        t1 = run_tag(a.force_offset, a.temperatures, a.samples_per_cycle, 1)
+        for c in cases:
+            for at in ats:
+                for sm in sms:
+                    for j in jbs:
+                        key = f"{c} ({at}, {sm}, j{j}"
+                        print(f"{key}): confirm 2 / confirm 1 wall time "
+                              f"{w[key + tag + ')'] / w[key + t1 + ')']:.2f}")
     for c in cases:
         for j in jbs:
             for sm in sms if a.simulate_at == "both" else []:

@@ -409,3 +409,26 @@ def test_levels_that_share_a_fit_id_are_refused():
     b.applied = 133.001                      # 6 digits apart: two levels, two ids
     assert [s.id for s in plan(camp, "applied", FitConfig(tests=(a.id, b.id)))] == [
         "applied-133N", "applied-133.001N"]
+
+
+@pytest.mark.parametrize("force_offset", ["shared", "per_test"])
+def test_a_fit_records_space_rebuilds_the_space_it_was_sampled_in(force_offset):
+    """Space.from_json(space.to_json()) (what benchmarks/replay_stop.py reads from fit.json) has
+    the same free parameters, sampling box, log coordinates, fixed values, effects, noise priors
+    and offset box, and maps sampling vectors to the same kernel matrix and values."""
+    import json
+    from frictionuq.infer.fit import prepare
+    from frictionuq.infer.space import Space
+    test, _ = synthetic_test()
+    sp = prepare(FitSpec("s", [test], 267.0, FitConfig(effects=("stage2_nonlinear",),
+                                                        priors={"sigma2": 900.0},
+                                                        force_offset=force_offset)))[2]
+    back = Space.from_json(json.loads(json.dumps(sp.to_json())))
+    assert back.names == sp.names and back.effects == sp.effects and back.fixed == sp.fixed
+    assert back.offset_box == sp.offset_box and back.noise_priors == sp.noise_priors
+    np.testing.assert_array_equal(back.lo, sp.lo)
+    np.testing.assert_array_equal(back.hi, sp.hi)
+    np.testing.assert_array_equal(back.log, sp.log)
+    u = np.random.default_rng(5).standard_normal((3, sp.ndim))
+    np.testing.assert_array_equal(back.kernel_matrix(back.from_u(u)), sp.kernel_matrix(sp.from_u(u)))
+    np.testing.assert_array_equal(back.to_values(back.from_u(u)), sp.to_values(sp.from_u(u)))

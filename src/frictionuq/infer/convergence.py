@@ -1,6 +1,7 @@
 """The stored run's convergence statistics (the sampler controller's stopping rule, sampler.py):
 the integrated autocorrelation time, the thinning of the stored draws, and R-hat and ESS on the
-draws a fit reports. `cfg` is the run's sampler.SamplerConfig."""
+draws a fit reports, the stopping rule at one check, and its replay on a stored chain. `cfg` is
+the run's sampler.SamplerConfig."""
 from __future__ import annotations
 
 import warnings
@@ -42,3 +43,31 @@ def check(chain: np.ndarray, cfg, space=None) -> dict:
     return {"tau": tau, "tau_max": float(np.max(tau)), "r_hat_max": float(np.max(diag["r_hat"])),
             "ess_min": float(min(np.min(diag["ess_bulk"]), np.min(diag["ess_tail"]))),
             "r_hat": diag["r_hat"]}
+
+
+def rule_met(c: dict, prev_tau: float | None, kept: int, cfg) -> bool:
+    """The stopping rule at one check (sampler module docstring): `c` from check() on the `kept`
+    steps, `prev_tau` the previous check's max tau (None at the first check: never met)."""
+    tau_ok = prev_tau is not None and kept > cfg.tau_factor * c["tau_max"] and \
+        abs(c["tau_max"] - prev_tau) / c["tau_max"] < cfg.tau_rtol
+    return bool(tau_ok and c["r_hat_max"] <= cfg.r_hat_max and c["ess_min"] >= cfg.ess_min)
+
+
+def replay(chain: np.ndarray, cfg, space=None) -> list[dict]:
+    """The stopping rule's checks replayed on a stored run's chain (steps, walkers, ndim; the
+    sampler's coordinates, e.g. a fit's chain.h5): one row per check (every cfg.chunk steps from
+    cfg.min_steps, as the sampler makes them) with max tau, R-hat, ESS, whether the rule held
+    and how many checks in a row it has held. Shows where a longer run would have stopped under
+    each `confirm_checks` (benchmarks/replay_stop.py)."""
+    rows, prev, passes = [], None, 0
+    for n in range(cfg.chunk, chain.shape[0] + 1, cfg.chunk):
+        if n < cfg.min_steps:
+            continue
+        burn = int(n * cfg.discard_fraction)
+        c = check(chain[burn:n], cfg, space)
+        met = rule_met(c, prev, n - burn, cfg)
+        prev = c["tau_max"]
+        passes = passes + 1 if met else 0
+        rows.append({"steps": n, "tau_max": c["tau_max"], "r_hat_max": c["r_hat_max"],
+                     "ess_min": c["ess_min"], "rule_met": met, "in_a_row": passes})
+    return rows

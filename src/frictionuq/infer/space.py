@@ -195,6 +195,14 @@ class Space:
             th[:, i] = truncnorm.rvs(a, b, loc=mu, scale=sd, size=n, random_state=rng)
         return th
 
+    @classmethod
+    def from_json(cls, d: dict) -> "Space":
+        """The space a fit record's "space" entry (to_json) describes."""
+        pri = {n: Prior(name=n, **p) for n, p in {**d["priors"], **d["noise_priors"]}.items()}
+        box = d.get("offset", {}).get("prior_box_N")
+        return cls(d["model"], tuple(d["effects"]), d["likelihood"], pri,
+                   {k: float(v) for k, v in d["fixed"].items()}, None if box is None else tuple(box))
+
     def to_json(self) -> dict:
         return {"model": self.model, "effects": list(self.effects), "likelihood": self.likelihood,
                 "free": self.names, "priors": {n: p.to_json() for n, p in self.priors.items()},
