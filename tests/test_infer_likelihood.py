@@ -292,6 +292,45 @@ def test_independent_chains_run_reproduces_and_resumes(small_fit, tmp_path):
     assert np.array_equal(after, emcee.backends.HDFBackend(str(tmp_path / "full.h5"), read_only=True).get_chain())
 
 
+def test_a_run_resumed_mid_chunk_checks_and_stops_where_the_uninterrupted_one_does(small_fit,
+                                                                                    tmp_path):
+    """A run interrupted between two checks (here capped at 50 stored steps, checks every 20)
+    and resumed stops at the same step as the uninterrupted run, with the same chain: the resumed
+    session replays the stored checks (the rule held at 40 steps), checks at 60 and 80 as the
+    uninterrupted run does, and stops at 80 (the rule held at three checks in a row). On the
+    code before, it checked at 70, 90, 110, 130 with the count and tau started afresh, and
+    stopped at 130. A finished run resumed again runs no step. The rule is made loose (every check after
+    the first holds) so that the stop is deterministic."""
+    import emcee
+    lp, scales, _ = small_fit
+    kw = dict(nwalkers=32, run_walkers=8, chunk=20, min_steps=20, burn_rounds=2, burn_steps=10,
+              burn_max_rounds=2, n_random_starts=0, n_prior_starts=1, progress=False,
+              thin_output=1, tau_factor=1e-6, tau_rtol=1e6, r_hat_max=1e6, ess_min=1e-6,
+              n_global_starts=0,
+              confirm_checks=3)
+    full = sample(lp, scales, seed=3, backend_path=tmp_path / "full.h5",
+                  cfg=SamplerConfig(max_steps=200, **kw), resume=False)
+    assert (full.n_steps, full.converged_tau) == (80, True)
+    assert [h["steps"] for h in full.history] == [20, 40, 60, 80]
+    part = tmp_path / "part.h5"
+    cut = sample(lp, scales, seed=3, backend_path=part, cfg=SamplerConfig(max_steps=50, **kw),
+                 resume=False)
+    assert (cut.n_steps, cut.converged_tau) == (50, False)
+    msgs = []
+    res = sample(lp, scales, seed=3, backend_path=part, cfg=SamplerConfig(max_steps=200, **kw),
+                 resume=True, log=msgs.append)
+    assert res.resumed_from == [50] and (res.n_steps, res.converged_tau) == (80, True)
+    assert [h["steps"] for h in res.history] == [60, 80]
+    assert any("replayed on the 50 stored steps" in m and "held at the last 1 in a row" in m
+               for m in msgs)
+    assert np.array_equal(emcee.backends.HDFBackend(str(part), read_only=True).get_chain(),
+                          emcee.backends.HDFBackend(str(tmp_path / "full.h5"), read_only=True).get_chain())
+    assert np.array_equal(res.chain, full.chain)
+    done = sample(lp, scales, seed=3, backend_path=part, cfg=SamplerConfig(max_steps=200, **kw),
+                  resume=True)
+    assert (done.n_steps, done.converged_tau, done.history) == (80, True, [])
+
+
 def test_tempered_chains_run_reproduces_and_resumes(small_fit, tmp_path):
     """The stored run with parallel tempering (temperatures=3): the backend holds all 3 x 8
     walkers, the result only the 8 untempered chains, every stored walker's log-posterior is the

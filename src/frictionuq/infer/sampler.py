@@ -55,7 +55,9 @@ until the chain passes the convergence criteria.
   instead of 2.9 (docs/log-calibration.md). One check more cannot rule such a stop out, only
   make it less likely; it costs a converging fit one `chunk` of steps or more.
 * Storage (storage.py): emcee's HDF5 backend (in u coordinates), written every step: an
-  interrupted run resumes from its last step (random state included) with `resume=True`.
+  interrupted run resumes from its last step (random state included) with `resume=True`, and
+  replays the stored chain's checks first (convergence.replay), so that it checks on the same
+  steps and stops where the uninterrupted run would.
 * Reproducibility: emcee copies NumPy's global random state at construction, so the sampler's
   own state is seeded explicitly from `seed`.
 """
@@ -72,7 +74,7 @@ import numpy as np
 from ..errors import InputError
 from ..interrupts import Interrupts, interrupts
 from .burnin import burn_in, independent, moves_for, progress_bar, run_steps
-from .convergence import autocorr_time, check, rule_met, thinning
+from .convergence import autocorr_time, check, replay, rule_met, thinning
 from .likelihood import LogPosterior, UnboundedPosterior
 from .localfit import gauss_newton_cov
 from .optimize import find_map
@@ -289,13 +291,15 @@ def _cold(cfg: SamplerConfig, n_walkers: int) -> slice:
 
 
 def _run(sampler, state, cfg, sp, n_done, history, log, intr=None, moves=()):
-    """The stored run in chunks until the convergence criteria or the step cap."""
-    prev_tau = None
+    """The stored run in chunks until the convergence criteria or the step cap. The checks fall
+    on multiples of `chunk` stored steps; a resumed run (n_done > 0) first replays the stored
+    chain's checks (convergence.replay) to restore the rule's state (the last max tau and the
+    checks in a row it held at), so that it checks and stops where the uninterrupted run would."""
     cold = _cold(cfg, sampler.nwalkers)
-    converged = False
-    passes = 0                        # checks in a row at which the rule held
-    while n_done < cfg.max_steps:
-        n = min(cfg.chunk, cfg.max_steps - n_done)
+    prev_tau, passes = _replayed(sampler, cfg, sp, cold, n_done, log)
+    converged = passes >= cfg.confirm_checks
+    while n_done < cfg.max_steps and not converged:
+        n = min(cfg.chunk - n_done % cfg.chunk, cfg.max_steps - n_done)
         run_steps(sampler, state, n, progress=progress_bar(cfg), intr=intr)
         state = None
         n_done = int(sampler.iteration)
@@ -321,10 +325,25 @@ def _run(sampler, state, cfg, sp, n_done, history, log, intr=None, moves=()):
         if met and passes < cfg.confirm_checks:
             log(f"step {n_done}: stopping rule met ({passes} of {cfg.confirm_checks} checks in a "
                 f"row); running {cfg.chunk} more steps to confirm")
-        if passes >= cfg.confirm_checks:
-            converged = True
-            break
+        converged = passes >= cfg.confirm_checks
     return n_done, converged
+
+
+def _replayed(sampler, cfg, sp, cold, n_done, log) -> tuple[float | None, int]:
+    """The stopping rule's state after the first `n_done` stored steps (a resumed run): the max
+    tau of the last check and the checks in a row the rule held at, replayed on the stored
+    chain; (None, 0) for a fresh run."""
+    if not n_done:
+        return None, 0
+    rows = replay(sampler.get_chain()[:n_done, cold], cfg, sp)
+    if not rows:
+        return None, 0
+    last = rows[-1]
+    log(f"stopping rule replayed on the {n_done} stored steps: {len(rows)} checks, the last at "
+        f"step {last['steps']} (max tau {last['tau_max']:.1f} steps, R-hat max "
+        f"{last['r_hat_max']:.3f}, ESS min {last['ess_min']:.0f}); held at the last "
+        f"{last['in_a_row']} in a row")
+    return last["tau_max"], last["in_a_row"]
 
 
 def _result(sampler, cfg, sp, n_done, converged, theta_map, lp_map, logpost, t0, burn_in_steps,
