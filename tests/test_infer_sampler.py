@@ -232,8 +232,10 @@ def test_the_run_stops_only_when_the_rule_holds_at_two_checks_in_a_row(monkeypat
     assert sum("to confirm" in m for m in msgs) == 2       # at 20 and at 40 steps
     n, conv, _ = _stop_step(monkeypatch, script, 1)
     assert (n, conv) == (20, True)
-    n, conv, _ = _stop_step(monkeypatch, [False, True, False, True, False], 2)
+    n, conv, msgs = _stop_step(monkeypatch, [False, True, False, True, False], 2)
     assert (n, conv) == (50, False)                         # never twice in a row: the cap
+    n, conv, msgs = _stop_step(monkeypatch, [False, False, True], 2)
+    assert (n, conv) == (30, False) and not any("to confirm" in m for m in msgs)   # at the cap
 
 
 def test_the_replay_of_a_stored_chain_repeats_the_runs_own_checks():

@@ -322,9 +322,9 @@ def _run(sampler, state, cfg, sp, n_done, history, log, intr=None, moves=()):
         prev_tau = c["tau_max"]
         passes = passes + 1 if met else 0
         h["rule_met"] = bool(met)
-        if met and passes < cfg.confirm_checks:
+        if met and passes < cfg.confirm_checks and n_done < cfg.max_steps:
             log(f"step {n_done}: stopping rule met ({passes} of {cfg.confirm_checks} checks in a "
-                f"row); running {cfg.chunk} more steps to confirm")
+                f"row); running {min(cfg.chunk, cfg.max_steps - n_done)} more steps to confirm")
         converged = passes >= cfg.confirm_checks
     return n_done, converged
 
