@@ -266,3 +266,8 @@ def test_the_replay_of_a_stored_chain_repeats_the_runs_own_checks():
         assert (r["tau_max"], r["r_hat_max"], r["ess_min"], r["rule_met"]) == \
             (h["tau_max"], h["r_hat_max"], h["ess_min"], h["rule_met"])
     assert [r["rule_met"] for r in rows][1:] == [True] * 4      # the rule did hold: not vacuous
+    tail = replay(s.get_chain(), cfg, Identity(), from_step=1600)   # what a resumed run replays
+    assert [r["steps"] for r in tail] == [1600, 2000, 2400]
+    assert [(r["tau_max"], r["r_hat_max"], r["ess_min"]) for r in tail] == \
+        [(r["tau_max"], r["r_hat_max"], r["ess_min"]) for r in rows[2:]]
+    assert [r["rule_met"] for r in tail] == [False, True, True]    # no previous tau at its first

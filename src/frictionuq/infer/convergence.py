@@ -53,15 +53,16 @@ def rule_met(c: dict, prev_tau: float | None, kept: int, cfg) -> bool:
     return bool(tau_ok and c["r_hat_max"] <= cfg.r_hat_max and c["ess_min"] >= cfg.ess_min)
 
 
-def replay(chain: np.ndarray, cfg, space=None) -> list[dict]:
+def replay(chain: np.ndarray, cfg, space=None, from_step: int = 0) -> list[dict]:
     """The stopping rule's checks replayed on a stored run's chain (steps, walkers, ndim; the
     sampler's coordinates, e.g. a fit's chain.h5): one row per check (every cfg.chunk steps from
     cfg.min_steps, as the sampler makes them) with max tau, R-hat, ESS, whether the rule held
     and how many checks in a row it has held. Shows where a longer run would have stopped under
-    each `confirm_checks` (benchmarks/replay_stop.py)."""
+    each `confirm_checks` (benchmarks/replay_stop.py). `from_step`: only the checks at or after
+    it (the first of them has no previous tau, so the rule cannot hold there)."""
     rows, prev, passes = [], None, 0
     for n in range(cfg.chunk, chain.shape[0] + 1, cfg.chunk):
-        if n < cfg.min_steps:
+        if n < max(cfg.min_steps, from_step):
             continue
         burn = int(n * cfg.discard_fraction)
         c = check(chain[burn:n], cfg, space)

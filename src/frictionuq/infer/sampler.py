@@ -332,15 +332,19 @@ def _run(sampler, state, cfg, sp, n_done, history, log, intr=None, moves=()):
 def _replayed(sampler, cfg, sp, cold, n_done, log) -> tuple[float | None, int]:
     """The stopping rule's state after the first `n_done` stored steps (a resumed run): the max
     tau of the last check and the checks in a row the rule held at, replayed on the stored
-    chain; (None, 0) for a fresh run."""
+    chain; (None, 0) for a fresh run. Only the last confirm_checks + 1 checks are replayed: the
+    first of them gives the previous tau, and a longer run of passes than confirm_checks
+    changes nothing (a long chain has hundreds of checks, each a few tenths of a second)."""
     if not n_done:
         return None, 0
-    rows = replay(sampler.get_chain()[:n_done, cold], cfg, sp)
+    last_check = n_done - n_done % cfg.chunk
+    rows = replay(sampler.get_chain()[:n_done, cold], cfg, sp,
+                  from_step=last_check - cfg.confirm_checks * cfg.chunk)
     if not rows:
         return None, 0
     last = rows[-1]
-    log(f"stopping rule replayed on the {n_done} stored steps: {len(rows)} checks, the last at "
-        f"step {last['steps']} (max tau {last['tau_max']:.1f} steps, R-hat max "
+    log(f"stopping rule replayed on the {n_done} stored steps ({len(rows)} checks up to step "
+        f"{last['steps']}: max tau {last['tau_max']:.1f} steps, R-hat max "
         f"{last['r_hat_max']:.3f}, ESS min {last['ess_min']:.0f}); held at the last "
         f"{last['in_a_row']} in a row")
     return last["tau_max"], last["in_a_row"]
