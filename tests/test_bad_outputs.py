@@ -143,6 +143,14 @@ def test_simulate_refuses_a_folder_as_out_and_names_the_faulty_input(work, tmp_p
                comments="")
     _one_line(capsys, main(["simulate", "--params", str(work / "P.json"), "--input", str(mm),
                             "--out", str(tmp_path / "s.csv")]), f"{mm}: the drive's amplitude is 26.31 m, above 1 m")
+    # a drive at 1 MHz (until 2026-12-06 simulated): its fastest step named
+    fast = tmp_path / "fast.csv"
+    tf = np.arange(601) / 2e8
+    np.savetxt(fast, np.column_stack([tf, 1e-4 * np.sin(2e6 * np.pi * tf)]), delimiter=",",
+               header="time,displacement", comments="")
+    _one_line(capsys, main(["simulate", "--params", str(work / "P.json"), "--input", str(fast),
+                            "--out", str(tmp_path / "s.csv")]),
+              f"{fast}: the drive moves at 628.2 m/s between t = ")
     # an existing FIFO (or device) as --out: until 2026-12-05 replaced by a regular file
     fifo = tmp_path / "fifo.csv"
     os.mkfifo(fifo)

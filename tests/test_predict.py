@@ -228,7 +228,7 @@ def test_noise_correlation_is_converted_to_the_prediction_rate():
 @pytest.mark.parametrize("case", ["missing-file", "missing-column", "text-cell", "time-back",
                                   "amplitude", "frequency", "not-fit-dir", "no-level-no-law",
                                   "applied-text", "out-not-empty", "mm-harmonic", "mm-input",
-                                  "clean-harmonic", "file-as-fit-dir"])
+                                  "clean-harmonic", "file-as-fit-dir", "fast-harmonic", "fast-input"])
 def test_bad_input_exit_2_one_line_nothing_written(fit_dir, tmp_path, capsys, case):
     X = tmp_path / "X.csv"
     rows = [(k * 0.01, float(0.01 * np.sin(k * 0.1))) for k in range(50)]
@@ -269,6 +269,15 @@ def test_bad_input_exit_2_one_line_nothing_written(fit_dir, tmp_path, capsys, ca
         src, frag = ["--input", str(X)], "X.csv: the drive's amplitude is 13.15 m, above 1 m"
     elif case == "clean-harmonic":
         src, frag = ["--harmonic", "0.01,0.5", "--clean-input"], "a harmonic is always clean"
+    elif case == "fast-harmonic":      # 0.1 mm at 1 MHz (628 m/s): until 2026-12-06 predicted
+        src, frag = ["--harmonic", "0.0001,1e6"], (
+            "harmonic input: its peak speed 2 pi f A is 628.3 m/s (0.0001 m at 1e+06 Hz), above "
+            "10 m/s, which no damper test reaches")
+    elif case == "fast-input":         # a 15 cm glitch at t = 0.2 s: 15 m/s into it and out of it
+        X.write_text("time,displacement\n" + "".join(
+            f"{a!r},{b + (0.15 if k == 20 else 0.0)!r}\n" for k, (a, b) in enumerate(rows)))
+        src, frag = ["--input", str(X)], ("X.csv: the drive moves at 15.05 m/s between t = 0.2 s "
+                                          "and 0.21 s, above 10 m/s, which no damper test reaches")
     else:
         out.mkdir()
         (out / "keep.txt").write_text("mine")

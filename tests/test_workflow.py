@@ -90,6 +90,10 @@ def test_the_stored_run_is_chosen_in_the_sampler_table(tmp_path):
      "[[predict.harmonic]][0].amplitude_m", "20 m is above 1 m, which no damper test reaches"),
     ("\n[[predict.ground_motion]]\nrecord = 'kobe'\npeak_m = 20\napplied = 36\n",
      "[[predict.ground_motion]][0].peak_m", "20 m is above 1 m"),
+    # a frequency in the wrong unit (0.1 mm at 1 MHz moves at 628 m/s): until 2026-12-06 predicted
+    ("\n[[predict.harmonic]]\namplitude_m = 0.0001\nfrequency_hz = 1e6\napplied = 36\n",
+     "[[predict.harmonic]][0].frequency_hz", "its peak speed 2 pi f A is 628.3 m/s (0.0001 m at "
+     "1e+06 Hz), above 10 m/s, which no damper test reaches"),
     ("\n[compare]\nmodels = ['lugre']\n", "[compare].models", "two models"),
     ("\n[compare]\nenabled = 'yes'\n", "[compare].enabled", "true or false"),
     ("\n[discrepancy]\nenabled = 1\n", "[discrepancy].enabled", "true or false"),

@@ -39,7 +39,7 @@ from .draws import LAW_SOURCE, Draws, choose_draws
 from .extrapolation import warn_about
 from .cycles import CYCLE_COLUMNS, cycle_bounds, cycle_table
 from .fitdir import campaign_applied_unit, load_summary, not_converged
-from .units import check_amplitude
+from .units import check_amplitude, check_drive, harmonic_speed_problem
 
 QUANTILES = (2.5, 25.0, 50.0, 75.0, 97.5)
 HARMONIC_CYCLES = 3
@@ -274,7 +274,7 @@ def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied
     lowpass_mult = None
     if input_csv is not None:
         t, x, sig = read_input(input_csv)
-        check_amplitude(x, str(input_csv))
+        check_drive(t, x, str(input_csv))
         if clean_input:
             eps, rule = 0.0, "0: a clean generated drive (clean_input)"
         else:
@@ -299,6 +299,8 @@ def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied
             raise InputError(f"harmonic input: expected (amplitude m, frequency Hz), got {harmonic!r}") from None
         t, x = harmonic_input(amp, freq)
         check_amplitude(x, "harmonic input")
+        if harmonic_speed_problem(amp, freq):
+            raise InputError(f"harmonic input: {harmonic_speed_problem(amp, freq)}")
         sig, eps, spc = None, 0.0, HARMONIC_SAMPLES_PER_CYCLE
         inp = {"kind": "harmonic", "amplitude_m": float(amp), "frequency_hz": float(freq),
                "cycles": HARMONIC_CYCLES, "samples_per_cycle": HARMONIC_SAMPLES_PER_CYCLE,

@@ -21,7 +21,7 @@ from .errors import InputError, not_a_file
 from . import model as M
 from .model import simulate
 from .records import read_csv
-from .units import AMPLITUDE_PLAUSIBLE_M, check_amplitude, metres_note
+from .units import AMPLITUDE_PLAUSIBLE_M, check_drive, metres_note
 
 
 def read_params(path) -> tuple[dict, dict | None]:
@@ -76,7 +76,7 @@ def simulate_files(params_path, input_path, out_path, model: str = "three_stage"
         raise InputError(f"--eps {eps!r}: the reversal dead-band must be finite and >= 0 m")
     if float(eps) > AMPLITUDE_PLAUSIBLE_M:
         raise InputError(f"--eps {eps!r}: {float(eps):g} m is {metres_note()}")
-    check_amplitude(cols["displacement"], str(input_path))
+    check_drive(cols["time"], cols["displacement"], str(input_path))
     inputs = {Path(params_path).resolve(), Path(input_path).resolve()}
     for o in (Path(out_path), Path(f"{out_path}.json")):     # refused before anything is written
         if o.is_dir():

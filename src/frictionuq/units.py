@@ -5,6 +5,8 @@ twins, the CLI and every report go through this module, so a unit is spelled one
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .errors import unknown
@@ -18,6 +20,11 @@ PSI = LBF / INCH**2
 #: a drive amplitude (largest |x - median x|) or a length option above this is refused: no damper
 #: test moves a metre; it is millimetres given as metres (inputs are in SI)
 AMPLITUDE_PLAUSIBLE_M = 1.0
+#: a drive whose peak speed is above this is refused: servo-hydraulic damper tests and scaled
+#: earthquake ground motions stay below a few m/s (the shipped ARTS records peak at 0.25 m/s);
+#: beyond it a time, frequency or length is in the wrong unit (a harmonic of 0.1 mm at 1 MHz
+#: moves at 628 m/s)
+SPEED_PLAUSIBLE_M_S = 10.0
 
 UNITS: dict[str, dict[str, float]] = {
     "time": {"s": 1.0, "ms": 1e-3},
@@ -97,3 +104,35 @@ def check_amplitude(x, what: str) -> None:
     amp = amplitude(x)
     if amp > AMPLITUDE_PLAUSIBLE_M:
         raise InputError(f"{what}: the drive's amplitude is {amp:.4g} m, {metres_note()}")
+
+
+def speed_note() -> str:
+    """The end of a message refusing a speed above SPEED_PLAUSIBLE_M_S."""
+    return (f"above {SPEED_PLAUSIBLE_M_S:g} m/s, which no damper test reaches: times are in "
+            "seconds, frequencies in Hz and lengths in metres")
+
+
+def harmonic_speed_problem(amplitude_m: float, frequency_hz: float) -> str | None:
+    """Why a harmonic A sin(2 pi f t) is refused for its peak speed 2 pi f A, or None."""
+    v = 2.0 * math.pi * float(frequency_hz) * float(amplitude_m)
+    if v <= SPEED_PLAUSIBLE_M_S:
+        return None
+    return (f"its peak speed 2 pi f A is {v:.4g} m/s ({float(amplitude_m):g} m at "
+            f"{float(frequency_hz):g} Hz), {speed_note()}")
+
+
+def check_drive(t, x, what: str) -> None:
+    """Refuse a drive (times s, displacements m, time increasing) whose amplitude is above
+    AMPLITUDE_PLAUSIBLE_M (check_amplitude) or whose fastest step is above SPEED_PLAUSIBLE_M_S,
+    naming the step's times."""
+    from .errors import InputError
+    check_amplitude(x, what)
+    t = np.asarray(t, float)
+    x = np.asarray(x, float)
+    if x.size < 2:
+        return
+    v = np.abs(np.diff(x) / np.diff(t))
+    k = int(np.argmax(v))
+    if v[k] > SPEED_PLAUSIBLE_M_S:
+        raise InputError(f"{what}: the drive moves at {v[k]:.4g} m/s between t = {t[k]:.6g} s "
+                         f"and {t[k + 1]:.6g} s, {speed_note()}")
