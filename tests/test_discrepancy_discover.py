@@ -19,7 +19,12 @@ from frictionuq.discrepancy.hidden import hidden_campaign
 @pytest.mark.parametrize("device, effect, seed", [
     ("brfd", None, 7),
     ("brfd", None, 12),     # a false alarm before the rule's in-sample condition (e)
-    ("mfd", "takeup_overshoot", 7),      # the effects beyond the spec (opt-in candidates)
+    # the effects beyond the spec (opt-in candidates). ("mfd", "takeup_overshoot", 7), here since
+    # 2026-11-23, left CI on 2026-12-06 for the suite's time (175 s, the second slowest case of
+    # this file): takeup_overshoot has its CI case in test_discrepancy_discover_rounds.py (BRFD,
+    # named in round 1 with chatter hidden too), the MFD its thermal_fade refit there; this one
+    # runs in the benchmark, `benchmarks/bench_discover.py --devices mfd --effects
+    # takeup_overshoot --extra-effects takeup_overshoot --seeds 7` (the CI's configuration)
     ("brfd", "speed_weakening", 11),
     # ("brfd", "stage2_nonlinear", 11) was here until 2026-11-28: a favourable draw (named in 2 of
     # 18 short campaigns), and named or not by a 13-nat error of the Laplace evidence next to a
