@@ -299,8 +299,8 @@ def write_prediction(fit_dir, out_dir, *, input_csv=None, harmonic=None, applied
             raise InputError(f"harmonic input: expected (amplitude m, frequency Hz), got {harmonic!r}") from None
         t, x = harmonic_input(amp, freq)
         check_amplitude(x, "harmonic input")
-        if harmonic_speed_problem(amp, freq):
-            raise InputError(f"harmonic input: {harmonic_speed_problem(amp, freq)}")
+        if problem := harmonic_speed_problem(amp, freq):
+            raise InputError(f"harmonic input: {problem}")
         sig, eps, spc = None, 0.0, HARMONIC_SAMPLES_PER_CYCLE
         inp = {"kind": "harmonic", "amplitude_m": float(amp), "frequency_hz": float(freq),
                "cycles": HARMONIC_CYCLES, "samples_per_cycle": HARMONIC_SAMPLES_PER_CYCLE,

@@ -258,8 +258,8 @@ def _predict(c: Checker, t: dict, base: Path) -> dict:
         if amp > AMPLITUDE_PLAUSIBLE_M:
             c.fail(f"{wh}.amplitude_m", f"{amp:g} m is {metres_note()}")
         f = c.num(e, "frequency_hz", wh, positive=True, required=True)
-        if harmonic_speed_problem(amp, f):
-            c.fail(f"{wh}.frequency_hz", harmonic_speed_problem(amp, f))
+        if problem := harmonic_speed_problem(amp, f):
+            c.fail(f"{wh}.frequency_hz", problem)
         a = c.num(e, "applied", wh, minimum=0, required=True)
         out["harmonic"].append({"name": named(e, f"harmonic-{amp * 1e3:g}mm-{f:g}Hz-{a:g}", wh),
                                 "amplitude_m": amp, "frequency_hz": f, "applied": a})
