@@ -90,6 +90,31 @@ def test_identifiability_flags_a_wide_posterior_cut_off_by_a_bound_not_one_merel
     assert rep["at_prior_bound"] == {} and "v_s" in rep["close_to_prior"]
 
 
+def test_identifiability_flags_a_bound_cut_mode_beside_a_far_one_not_close_to_the_prior():
+    """The real 70 lb level of arts-d1 (2026-12-06): v_s's draws in two modes, 73 % in the top
+    2.4 % of the box (cut by the bound) and the rest far below. Its sd was 0.93 of the prior's,
+    so the sd rule alone listed it as close to the prior and never checked the bound. Its
+    Kolmogorov-Smirnov distance to the prior (0.71 there) now keeps it out of that list; a
+    posterior spread like the prior is still listed (distance ~0.01)."""
+    from frictionuq.infer.outputs import PRIOR_LIKE_KS, ks_to_prior
+    sp = _three_free_space()
+    rng = np.random.default_rng(4)
+    n = 4000
+    cut = 1 - np.abs(rng.normal(0.0, 0.01, n))                 # piled at the upper bound
+    far = rng.uniform(0.05, 0.5, n)                           # a second mode far below it
+    v_s = np.where(rng.uniform(size=n) < 0.73, cut, far)
+    th = np.stack([rng.normal(5.0, 0.1, n), rng.uniform(0, 1, n), v_s], axis=1)
+    rep = identifiability(sp, {"theta": th.reshape(2, n // 2, 3)})
+    assert rep["posterior_over_prior_sd"]["v_s"] > 0.5           # the sd rule's "close"
+    assert rep["ks_to_prior"]["v_s"] > PRIOR_LIKE_KS
+    assert "v_s" not in rep["close_to_prior"] and rep["at_prior_bound"] == {"v_s": "upper"}
+    assert "d3" in rep["close_to_prior"] and rep["ks_to_prior"]["d3"] < 0.05   # uniform draws
+    # the distance itself: 0 for the prior's own quantiles, 0.5 for all draws in one half
+    q = (np.arange(1000) + 0.5) / 1000
+    assert ks_to_prior(sp, 1, q) == pytest.approx(0.0005)
+    assert ks_to_prior(sp, 1, 0.5 + 0.5 * q) == pytest.approx(0.5, abs=1e-3)
+
+
 def test_an_unreadable_stored_chain_is_started_afresh(tmp_path):
     """A chain file left unreadable (a process killed inside an HDF5 write) is not resumed and
     does not fail the fit: it is replaced, and the log says why."""
