@@ -184,9 +184,8 @@ def _prior_cdf(space, i: int, x: np.ndarray) -> np.ndarray:
     p = space.priors[space.names[i]]
     if p.dist != "normal":
         return np.clip((x - lo) / (hi - lo), 0.0, 1.0)
-    from scipy.stats import norm
-    a, b = norm.cdf((lo - p.mu) / p.sd), norm.cdf((hi - p.mu) / p.sd)
-    return np.clip((norm.cdf((x - p.mu) / p.sd) - a) / (b - a), 0.0, 1.0)
+    from scipy.stats import truncnorm
+    return truncnorm.cdf(x, (lo - p.mu) / p.sd, (hi - p.mu) / p.sd, loc=p.mu, scale=p.sd)
 
 
 def ks_to_prior(space, i: int, x: np.ndarray) -> float:
