@@ -244,6 +244,30 @@ def _stop_step(monkeypatch, rule_met: list[bool], confirm_checks: int) -> tuple[
     return n, conv, msgs
 
 
+def test_the_tau_condition_refuses_a_growing_tau_and_not_a_falling_one():
+    """convergence.rule_met's tau condition is one-sided (since 2026-12-06): a max tau that grew
+    by tau_rtol or more since the previous check fails the rule (the chain may still be finding
+    a slow direction), one that fell by as much passes it, all else equal (R-hat, ESS and the
+    kept length ample). The refit of item 6's campaign failed the old two-sided condition on
+    11.7 -> 10.9 steps with R-hat 1.005 and ESS 2,845, which cost it 1,000 stored steps. The
+    length condition still applies to the new tau. Deterministic."""
+    from frictionuq.infer.convergence import rule_met
+    cfg = SamplerConfig()                                   # tau_rtol 0.05, tau_factor 50
+
+    def c(tau, r_hat=1.005, ess=2845.0):
+        return {"tau_max": tau, "r_hat_max": r_hat, "ess_min": ess}
+
+    assert rule_met(c(10.9), 11.7, 2250, cfg)               # fell 7 %: passes (failed before)
+    assert rule_met(c(8.0), 11.7, 2250, cfg)                # fell by a third: passes
+    assert not rule_met(c(12.5), 11.7, 2250, cfg)           # grew 6.4 % of 12.5: fails
+    assert rule_met(c(12.2), 11.7, 2250, cfg)               # grew 4.1 %: passes, as before
+    assert not rule_met(c(20.7), 14.8, 2625, cfg)           # the dataset-2 chain at 3,500 steps
+    assert not rule_met(c(10.9), None, 2250, cfg)           # no previous check: never
+    assert not rule_met(c(46.0), 50.0, 2250, cfg)           # fell, but 2,250 < 50 x 46
+    assert not rule_met(c(10.9, r_hat=1.011), 11.7, 2250, cfg)
+    assert not rule_met(c(10.9, ess=399.0), 11.7, 2250, cfg)
+
+
 def test_the_run_stops_only_when_the_rule_holds_at_two_checks_in_a_row(monkeypatch):
     """A single check at which the rule holds is not enough: the run goes on a chunk and stops
     only when the next check agrees (confirm_checks = 2, the default); a failed check in between

@@ -44,8 +44,9 @@ until the chain passes the convergence criteria.
   `discard_fraction` (the burn-in phase is already discarded): the integrated autocorrelation
   time tau of every parameter (emcee.autocorr) and ArviZ's rank-normalised R-hat and bulk/tail
   ESS (walkers as chains) on the draws the fit reports (thinned, as parameter values: check).
-  The rule holds when the kept chain is longer than `tau_factor` x max tau, max tau changed by
-  less than `tau_rtol` since the previous check, and every parameter has R-hat <= `r_hat_max`
+  The rule holds when the kept chain is longer than `tau_factor` x max tau, max tau has not
+  grown by `tau_rtol` or more since the previous check (a fall passes: convergence.rule_met),
+  and every parameter has R-hat <= `r_hat_max`
   and ESS >= `ess_min`. The run stops when it has held at `confirm_checks` (2) checks in a row,
   or at `max_steps` (then the fit is reported as not converged). The confirming check (since
   2026-12-05): chains that start near the MAP and have not yet reached a slow direction's tail
