@@ -134,7 +134,6 @@ def test_global_start_keeps_its_population_at_most_128(ndim, members):
     assert np.all((th >= sp.lo) & (th <= sp.hi))
 
 
-
 def test_global_start_stops_once_its_population_agrees_within_atol():
     """optimize.global_start's atol: the search stops once the sd of its population's
     log-posteriors is at most atol nats, so a looser atol (the discrepancy candidates' DE_ATOL,
