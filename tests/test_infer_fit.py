@@ -134,28 +134,6 @@ def test_global_start_keeps_its_population_at_most_128(ndim, members):
     assert np.all((th >= sp.lo) & (th <= sp.hi))
 
 
-def test_global_start_stops_once_its_population_agrees_within_atol():
-    """optimize.global_start's atol: the search stops once the sd of its population's
-    log-posteriors is at most atol nats, so a looser atol (the discrepancy candidates' DE_ATOL,
-    5 nats; find_map's 0.5) stops it sooner, with the population already inside the optimum's
-    basin. A quadratic toy of 4 parameters (log-posterior -1000 |x - 0.3|^2 on [-1, 1]^4);
-    fails if atol is not passed to scipy."""
-    from frictionuq.discrepancy.candidate import DE_ATOL
-    from frictionuq.infer import optimize
-    sp = NS(lo=-np.ones(4), hi=np.ones(4), ndim=4)
-
-    class Toy:
-        space = sp
-
-        def log_prob(self, X):
-            return -1000.0 * np.sum((np.atleast_2d(X) - 0.3) ** 2, axis=1)
-
-    th_tight, g_tight = optimize.global_start(Toy(), None, np.random.default_rng(1))
-    th_loose, g_loose = optimize.global_start(Toy(), None, np.random.default_rng(1), atol=DE_ATOL)
-    assert DE_ATOL > 0.5 and g_loose < g_tight < 300, (g_loose, g_tight)
-    assert Toy().log_prob(th_tight)[0] > -0.5 and Toy().log_prob(th_loose)[0] > -DE_ATOL
-
-
 def test_the_recovery_length_reads_the_full_half_cycles_only():
     """infer.optimize._recovery_lengths, the heuristic start's backlash travel: a record of two
     sine cycles followed by many small reversals (as in an earthquake replay) gives the sines'

@@ -18,17 +18,6 @@ N_HEURISTIC_DRAWS = 8      # the effect's prior draws around the heuristic start
 #: stage2_nonlinear's exponents tried from the baseline's MAP with k2 moved with them
 #: (coupled_starts)
 STAGE2_P2_STARTS = (2.0, 3.0)
-#: the candidates' differential-evolution searches stop once the sd of their population's
-#: log-posteriors (on the ranking copies) is at most this many nats (find_map's: 0.5). Each
-#: search's end is only a start of least squares on the full records (the refine loop of
-#: candidate_map), and by then the population has chosen its basin: the generations after it
-#: walk the best point along that basin's floor, which least squares does in a few evaluations.
-#: Measured 2026-12-06 (docs/log-discrepancy.md) on item 6's campaign (MFD, thermal_fade hidden,
-#: seed 11): the six candidates' MAPs the same to 0.03 nats, their searches 11 % shorter (the
-#: generations e.g. 104 / 78 -> 72 / 55), the screening 169 -> 137 s on a 2-core AMD host. Not
-#: find_map's: its runs are compared with each other (two must agree within 2 nats), which needs
-#: them converged (at 5 nats the baseline's first two disagreed and a third ran)
-DE_ATOL = 5.0
 
 
 def candidate_map(logpost, base: dict, rng, scales) -> tuple[np.ndarray, float]:
@@ -108,7 +97,7 @@ def candidate_map(logpost, base: dict, rng, scales) -> tuple[np.ndarray, float]:
     ranked = coarsened(logpost, simulate="kept")      # the global searches' copy
     if N_CANDIDATE_GLOBAL:
         for _ in range(N_CANDIDATE_GLOBAL):
-            th_g, _ = global_start(ranked, first[order[0]], rng, atol=DE_ATOL)
+            th_g, _ = global_start(ranked, first[order[0]], rng)
             refine.append(th_g)
     # the baseline's own global searches' ends, with the effect at its default: basins the
     # baseline left for a better one can be where the effect belongs
@@ -127,7 +116,7 @@ def candidate_map(logpost, base: dict, rng, scales) -> tuple[np.ndarray, float]:
         lp_draws = logpost.log_prob(np.array(draws))
         th_d = draws[int(np.argmax(lp_draws))]
         refine.append(th_d)
-        refine.append(global_start(ranked, th_d, rng_h, atol=DE_ATOL)[0])
+        refine.append(global_start(ranked, th_d, rng_h)[0])
     # starts where a base parameter moves with the effect's (a curved stage 2 with its k2 raised)
     refine += coupled_starts(sp, base["space"], th0)
     best, best_lp = th0, F.log_prob(logpost, th0)
