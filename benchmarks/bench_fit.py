@@ -1,6 +1,6 @@
 """Calibration benchmark (issue 3 item 13): full fits to the convergence criteria, side by side.
 
-    .venv/bin/python benchmarks/bench_fit.py [--case twin|arts-d1|all] [--simulate-at raw|kept|both]
+    .venv/bin/python benchmarks/bench_fit.py [--case twin|arts-d1|arts-d2|all] [--simulate-at raw|kept|both]
         [--sampler chains|ensemble|both] [--jobs 1|2|both] [--max-steps N] [--tests ID ...]
         [--force-offset shared|per_test] [--temperatures L] [--samples-per-cycle N]
         [--confirm 1|2|both] [--out DIR]
@@ -9,7 +9,13 @@ Cases:
   * `twin`     one applied force of the BRFD twin (data/brfd-twin, 267 N, all its tests: four
                harmonics 0.05-0.5 Hz), joint fit, default configuration;
   * `arts-d1`  all of data/brfd-arts-d1 (12 real tests, six applied forces), one joint fit per
-               applied force plus the force-dependence law.
+               applied force plus the force-dependence law;
+  * `arts-d2`  the ten 36 lb sines of data/brfd-arts-d2, one joint fit: the fit behind item 9's
+               Imperial Valley validation (no item 13 target; not in `all`). Its d3 has two
+               modes (near 0.4 mm and 13 mm) and a chain that enters the upper one stays for
+               hundreds of steps; with `--temperatures 4` the chains cross far more often, but
+               the fit was still short of the rule at 6,000 steps (docs/log-calibration.md,
+               2026-12-06, evening).
 For each fit it prints wall time, model evaluations, evaluations per second, the smallest bulk
 ESS and the largest R-hat over the parameters, effective samples per second (smallest bulk ESS /
 wall time) and whether it met R-hat <= 1.01 and ESS >= 400 for every parameter.
@@ -57,6 +63,9 @@ CASES = {
     "twin": (ROOT / "data/brfd-twin", {"tests": ("h-267N-0.05Hz", "h-267N-0.1Hz", "h-267N-0.2Hz",
                                                  "h-267N-0.5Hz")}, 120.0),
     "arts-d1": (ROOT / "data/brfd-arts-d1", {}, 600.0),
+    "arts-d2": (ROOT / "data/brfd-arts-d2",
+                {"tests": tuple(f"sine-{f}Hz-36lb-{a}in" for f in ("0.25", "0.5", "1")
+                                for a in ("0.5", "1", "1.5")) + ("sine-2Hz-36lb-0.5in",)}, None),
 }
 
 
@@ -93,6 +102,8 @@ def target_verdict(result: dict) -> str:
     converged = sum(1 for row in result["rows"] if row[5])
     if converged < len(result["rows"]):
         return f"NOT met ({converged} of {len(result['rows'])} fits converged)"
+    if result["target"] is None:
+        return "yes (no time target)"
     return "met" if result["wall"] <= result["target"] else "NOT met"
 
 
@@ -130,7 +141,7 @@ def run(case: str, out: Path, simulate_at: str = "raw", sampler: str = "chains",
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--case", choices=["twin", "arts-d1", "all"], default="all")
+    ap.add_argument("--case", choices=["twin", "arts-d1", "arts-d2", "all"], default="all")
     ap.add_argument("--simulate-at", choices=["raw", "kept", "both"], default="raw")
     ap.add_argument("--sampler", choices=["chains", "ensemble", "both"], default="chains")
     ap.add_argument("--tests", nargs="+", default=None, help="only these tests of the campaign")
@@ -167,8 +178,12 @@ def main(argv=None):
         for fid, sec, ev, ess, rhat, ok, steps, tau in r["rows"]:
             print(f"{r['case'] + '/' + fid:<42}{sec:8.0f}{ev:10d}{ev / sec:9.0f}{steps:8d}{tau:7.0f}"
                   f"{ess:9.0f}{rhat:7.3f}{ess / sec:7.2f}  {'yes' if ok else 'NO'}")
-        print(f"{r['case']:<42}{r['wall']:8.0f} s in all (target {r['target']:.0f} s, every fit "
-              f"converged: {target_verdict(r)}, ratio {r['wall'] / r['target']:.2f})")
+        if r["target"] is None:
+            print(f"{r['case']:<42}{r['wall']:8.0f} s in all (no time target; every fit "
+                  f"converged: {target_verdict(r)})")
+        else:
+            print(f"{r['case']:<42}{r['wall']:8.0f} s in all (target {r['target']:.0f} s, every fit "
+                  f"converged: {target_verdict(r)}, ratio {r['wall'] / r['target']:.2f})")
     w = {r["case"]: r["wall"] for r in results}
     tag = run_tag(a.force_offset, a.temperatures, a.samples_per_cycle)
     if a.confirm == "both":
