@@ -14,8 +14,9 @@ Cases:
                Imperial Valley validation (no item 13 target; not in `all`). Its d3 has two
                modes (near 0.4 mm and 13 mm) and a chain that enters the upper one stays for
                hundreds of steps; with `--temperatures 4` the chains cross far more often, but
-               the fit was still short of the rule at 6,000 steps (docs/log-calibration.md,
-               2026-12-06, evening).
+               the fit was still short of the rule at 6,000 steps; with a proposal component on
+               that mode (benchmarks/mixture_proposal.py) it converged after 3,500
+               (docs/log-calibration.md, 2026-12-06, evening).
 For each fit it prints wall time, model evaluations, evaluations per second, the smallest bulk
 ESS and the largest R-hat over the parameters, effective samples per second (smallest bulk ESS /
 wall time) and whether it met R-hat <= 1.01 and ESS >= 400 for every parameter.
