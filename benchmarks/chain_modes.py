@@ -26,6 +26,34 @@ from frictionuq.infer.proposal import IndependenceMove, Proposal
 from frictionuq.infer.space import Space
 
 
+def cold_states(fit: Path, param: str, above: float, start: int):
+    """A stored run's cold chains and where PARAM > above lies in their coordinate: (column j,
+    edge in u, chain (steps, chains, D), log_prob (steps, chains), its stored Proposal, the last
+    step). Exits 2 with one line for a parameter the region cannot be read of."""
+    rec = json.loads((fit / "fit.json").read_text())
+    sp = Space.from_json(rec["space"])
+    if param not in sp.names:
+        print(f"{Path(sys.argv[0]).stem}: {param!r} is not a free parameter of this fit "
+              f"({', '.join(sp.names)})", file=sys.stderr)
+        sys.exit(2)
+    j = sp.names.index(param)
+    if sp.priors[param].ratio_of:
+        print(f"{Path(sys.argv[0]).stem}: {param}'s prior is relative to "
+              f"{sp.priors[param].ratio_of}; give another parameter", file=sys.stderr)
+        sys.exit(2)
+    theta = 0.5 * (sp.lo + sp.hi)
+    theta[j] = np.log(above) if sp.log[j] else above
+    edge = float(sp.to_u(theta)[j])        # the region's edge in the chain's coordinate
+    with h5py.File(fit / "chain.h5", "r") as f:
+        g = f["mcmc"]
+        n = int(g.attrs["iteration"])
+        cold = int(rec["config"]["sampler"]["run_walkers"])
+        chain = g["chain"][start:n, :cold, :]
+        logp = g["log_prob"][start:n, :cold]
+        proposal = Proposal.from_attrs(dict(g.attrs))
+    return j, edge, chain, logp, proposal, n
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -35,27 +63,9 @@ def main(argv=None) -> None:
     ap.add_argument("--start", type=int, default=1000, help="first stored step read")
     a = ap.parse_args(argv)
     fit = Path(a.fit)
-    rec = json.loads((fit / "fit.json").read_text())
-    sp = Space.from_json(rec["space"])
-    if a.param not in sp.names:
-        print(f"chain_modes: {a.param!r} is not a free parameter of this fit "
-              f"({', '.join(sp.names)})", file=sys.stderr)
-        sys.exit(2)
-    j = sp.names.index(a.param)
-    if sp.priors[a.param].ratio_of:
-        print(f"chain_modes: {a.param}'s prior is relative to {sp.priors[a.param].ratio_of}; "
-              "give another parameter", file=sys.stderr)
-        sys.exit(2)
-    theta = 0.5 * (sp.lo + sp.hi)
-    theta[j] = np.log(a.above) if sp.log[j] else a.above
-    edge = float(sp.to_u(theta)[j])        # the region's edge in the chain's coordinate
-    with h5py.File(fit / "chain.h5", "r") as f:
-        g = f["mcmc"]
-        n = int(g.attrs["iteration"])
-        cold = int(rec["config"]["sampler"]["run_walkers"])
-        chain = g["chain"][a.start:n, :cold, :]
-        logp = g["log_prob"][a.start:n, :cold]
-        move = IndependenceMove(Proposal.from_attrs(dict(g.attrs)))
+    j, edge, chain, logp, proposal, n = cold_states(fit, a.param, a.above, a.start)
+    cold = chain.shape[1]
+    move = IndependenceMove(proposal)
     inside = chain[:, :, j] > edge
     print(f"{fit}: steps {a.start}-{n}, {cold} chains; {a.param} > {a.above:g} "
           f"(u > {edge:.2f}) in {inside.mean():.1%} of the draws")

@@ -17,22 +17,20 @@ run on its own.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import time
 from pathlib import Path
 
 import emcee
-import h5py
 import numpy as np
 from scipy.special import gammaln
 
 import frictionuq.infer.sampler as sampler_module
 from bench_fit import CASES
+from chain_modes import cold_states
 from frictionuq.infer.fit import FitConfig, fit_campaign
 from frictionuq.infer.proposal import IndependenceMove, Proposal
 from frictionuq.infer.sampler import SamplerConfig
-from frictionuq.infer.space import Space
 
 
 def log_norm(move: IndependenceMove) -> float:
@@ -61,16 +59,8 @@ class MixtureMove(emcee.moves.MHMove):
 
 
 def second_component(fit: Path, param: str, above: float) -> tuple[Proposal, int]:
-    rec = json.loads((fit / "fit.json").read_text())
-    sp = Space.from_json(rec["space"])
-    j = sp.names.index(param)
-    theta = 0.5 * (sp.lo + sp.hi)
-    theta[j] = np.log(above) if sp.log[j] else above
-    edge = float(sp.to_u(theta)[j])
-    with h5py.File(fit / "chain.h5", "r") as f:
-        g = f["mcmc"]
-        n, cold = int(g.attrs["iteration"]), int(rec["config"]["sampler"]["run_walkers"])
-        x = g["chain"][200:n, :cold, :].reshape(-1, len(sp.names))
+    j, edge, chain, _, _, _ = cold_states(fit, param, above, start=200)
+    x = chain.reshape(-1, chain.shape[2])
     pool = x[x[:, j] > edge]
     return Proposal.fit(pool), len(pool)
 
