@@ -3,7 +3,7 @@
     .venv/bin/python benchmarks/bench_fit.py [--case twin|arts-d1|arts-d2|all] [--simulate-at raw|kept|both]
         [--sampler chains|ensemble|both] [--jobs 1|2|both] [--max-steps N] [--tests ID ...]
         [--force-offset shared|per_test] [--temperatures L] [--samples-per-cycle N]
-        [--confirm 1|2|both] [--out DIR]
+        [--confirm 1|2|both] [--mode-search off|on|both] [--out DIR]
 
 Cases:
   * `twin`     one applied force of the BRFD twin (data/brfd-twin, 267 N, all its tests: four
@@ -39,6 +39,9 @@ temperatures; 1, the default: none); with --sampler chains only (the ensemble's 
 not tempered).
 --samples-per-cycle: the decimation's kept rate as a multiple of each test's frequency
 (FitConfig.samples_per_cycle; default the CLI's 400; workflows/brfd-arts.toml uses 150).
+--mode-search: the burn-in's search for regions its proposal misses, each given a proposal
+component (SamplerConfig.mode_search, infer.modes; off by default), on, or both side by side with
+their time ratio.
 --confirm: the checks in a row at which the stopping rule must hold before the run stops
 (SamplerConfig.confirm_checks: 2, the default since 2026-12-05; 1, the rule before), or both
 side by side with their time ratio.
@@ -81,21 +84,24 @@ DEFAULT_CONFIRM = SamplerConfig().confirm_checks
 
 def run_name(case: str, simulate_at: str, sampler: str, jobs: int, force_offset: str,
              temperatures: int = 1, samples_per_cycle: float | None = None,
-             confirm: int = DEFAULT_CONFIRM) -> str:
+             confirm: int = DEFAULT_CONFIRM, mode_search: bool = False) -> str:
     """The folder of one benchmark fit under --out: every option that changes the fit in it."""
     return (f"{case}-{simulate_at}-{sampler}-j{jobs}-{force_offset}"
             + (f"-T{temperatures}" if temperatures > 1 else "")
             + (f"-spc{samples_per_cycle:g}" if samples_per_cycle else "")
-            + (f"-c{confirm}" if confirm != DEFAULT_CONFIRM else ""))
+            + (f"-c{confirm}" if confirm != DEFAULT_CONFIRM else "")
+            + ("-modes" if mode_search else ""))
 
 
 def run_tag(force_offset: str, temperatures: int = 1,
-            samples_per_cycle: float | None = None, confirm: int = DEFAULT_CONFIRM) -> str:
+            samples_per_cycle: float | None = None, confirm: int = DEFAULT_CONFIRM,
+            mode_search: bool = False) -> str:
     """The printed label's options beyond the defaults (the rows' and the ratios' keys)."""
     return (("" if force_offset == "shared" else f", {force_offset} offsets")
             + ("" if temperatures == 1 else f", T{temperatures}")
             + (f", {samples_per_cycle:g} per cycle" if samples_per_cycle else "")
-            + ("" if confirm == DEFAULT_CONFIRM else f", confirm {confirm}"))
+            + ("" if confirm == DEFAULT_CONFIRM else f", confirm {confirm}")
+            + (", mode search" if mode_search else ""))
 
 
 def target_verdict(result: dict) -> str:
@@ -111,10 +117,12 @@ def target_verdict(result: dict) -> str:
 def run(case: str, out: Path, simulate_at: str = "raw", sampler: str = "chains",
         tests=None, jobs: int = 1, max_steps: int | None = None,
         force_offset: str = "shared", temperatures: int = 1,
-        samples_per_cycle: float | None = None, confirm: int = DEFAULT_CONFIRM) -> dict:
+        samples_per_cycle: float | None = None, confirm: int = DEFAULT_CONFIRM,
+        mode_search: bool = False) -> dict:
     path, sel, target = CASES[case]
     caps = {"max_steps": max_steps} if max_steps else {}
     caps["confirm_checks"] = confirm
+    caps["mode_search"] = mode_search
     if temperatures > 1:
         caps["temperatures"] = temperatures
     cfg = FitConfig(tests=tuple(tests) if tests else sel.get("tests"), simulate_at=simulate_at,
@@ -123,7 +131,7 @@ def run(case: str, out: Path, simulate_at: str = "raw", sampler: str = "chains",
                     **({"samples_per_cycle": samples_per_cycle} if samples_per_cycle else {}))
     t0 = time.perf_counter()
     s = fit_campaign(path, out / run_name(case, simulate_at, sampler, jobs, force_offset,
-                                          temperatures, samples_per_cycle, confirm),
+                                          temperatures, samples_per_cycle, confirm, mode_search),
                      by="applied",
                      config=cfg, jobs=jobs)
     wall = time.perf_counter() - t0
@@ -134,7 +142,7 @@ def run(case: str, out: Path, simulate_at: str = "raw", sampler: str = "chains",
         rhat = max(p["r_hat"] for p in free.values())
         rows.append((f["id"], f["seconds"], f["model_evaluations"], ess, rhat, f["converged"],
                      f["sampler_steps"], f["tau_max"]))
-    tag = run_tag(force_offset, temperatures, samples_per_cycle, confirm)
+    tag = run_tag(force_offset, temperatures, samples_per_cycle, confirm, mode_search)
     return {"case": f"{case} ({simulate_at}, {sampler}, j{jobs}{tag})", "wall": wall, "target": target,
             "rows": rows}
 
@@ -157,6 +165,9 @@ def main(argv=None):
                     help="the decimation's kept samples per cycle (default: FitConfig's, 400)")
     ap.add_argument("--confirm", choices=["1", "2", "both"], default=str(DEFAULT_CONFIRM),
                     help="checks in a row the stopping rule must hold at (default 2), or both")
+    ap.add_argument("--mode-search", choices=["off", "on", "both"], default="off",
+                    help="the burn-in's mode search (SamplerConfig.mode_search; default off), or "
+                         "both side by side")
     ap.add_argument("--out", default=None, help="keep the fit outputs here (default: temporary)")
     a = ap.parse_args(argv)
     if a.temperatures > 1 and a.sampler != "chains":
@@ -170,9 +181,11 @@ def main(argv=None):
         sms = ["ensemble", "chains"] if a.sampler == "both" else [a.sampler]
         jbs = [1, 2] if a.jobs == "both" else [int(a.jobs)]
         cfs = [1, 2] if a.confirm == "both" else [int(a.confirm)]
+        mss = [False, True] if a.mode_search == "both" else [a.mode_search == "on"]
         results = [run(c, out, at, sm, a.tests, j, a.max_steps, a.force_offset, a.temperatures,
-                       a.samples_per_cycle, cf)
-                   for c in cases for at in ats for sm in sms for j in jbs for cf in cfs]
+                       a.samples_per_cycle, cf, ms)
+                   for c in cases for at in ats for sm in sms for j in jbs for cf in cfs
+                   for ms in mss]
     print(f"{'fit':<42}{'wall s':>8}{'evals':>10}{'evals/s':>9}{'steps':>8}{'tau':>7}"
           f"{'ESS min':>9}{'R-hat':>7}{'ESS/s':>7}  converged")
     for r in results:
@@ -186,7 +199,15 @@ def main(argv=None):
             print(f"{r['case']:<42}{r['wall']:8.0f} s in all (target {r['target']:.0f} s, every fit "
                   f"converged: {target_verdict(r)}, ratio {r['wall'] / r['target']:.2f})")
     w = {r["case"]: r["wall"] for r in results}
-    tag = run_tag(a.force_offset, a.temperatures, a.samples_per_cycle)
+    tag = run_tag(a.force_offset, a.temperatures, a.samples_per_cycle,
+                  mode_search=a.mode_search == "on")
+    if a.mode_search == "both":
+        on = run_tag(a.force_offset, a.temperatures, a.samples_per_cycle, mode_search=True)
+        for r in results:
+            if r["case"].endswith(on + ")"):
+                key = r["case"][: -len(on) - 1]
+                print(f"{key}): with / without mode search wall time "
+                      f"{w[key + on + ')'] / w[key + tag + ')']:.2f}")
     if a.confirm == "both":
         t1 = run_tag(a.force_offset, a.temperatures, a.samples_per_cycle, 1)
         for c in cases:

@@ -8,7 +8,8 @@ Reads <fit>/chain.h5 (the stored run; with tempering only the cold chains, the f
 `run_walkers` walkers) and <fit>/fit.json (the sampling space). Prints, per chain, the fraction
 of its stored steps from --start on with PARAM above the value (SI) and how many times it
 entered that region; then the log importance weight log p(x) - log q(x) of the independence
-proposal stored with the run, for the states above and below, relative to the median below.
+proposal stored with the run (with mode components, the mixture's), for the states above and
+below, relative to the median below.
 Where the weights above are e^k higher, an independence proposal from there back below is
 accepted about e^-k of the time, and a chain that gets there stays.
 """
@@ -22,7 +23,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from frictionuq.infer.proposal import IndependenceMove, Proposal
+from frictionuq.infer.proposal import Proposal
 from frictionuq.infer.space import Space
 
 
@@ -65,7 +66,7 @@ def main(argv=None) -> None:
     fit = Path(a.fit)
     j, edge, chain, logp, proposal, n = cold_states(fit, a.param, a.above, a.start)
     cold = chain.shape[1]
-    move = IndependenceMove(proposal)
+    move = proposal.move()       # with mode components (--mode-search) their mixture
     inside = chain[:, :, j] > edge
     print(f"{fit}: steps {a.start}-{n}, {cold} chains; {a.param} > {a.above:g} "
           f"(u > {edge:.2f}) in {inside.mean():.1%} of the draws")
@@ -73,7 +74,7 @@ def main(argv=None) -> None:
         entries = int(np.sum(np.diff(inside[:, c].astype(int)) == 1))
         print(f"  chain {c:2d}: {inside[:, c].mean():6.1%} of its steps, entered {entries} times")
     x = chain[::5].reshape(-1, chain.shape[2])
-    lw = logp[::5].reshape(-1) - move._logq(x)
+    lw = logp[::5].reshape(-1) - move.logq(x)
     up = x[:, j] > edge
     ref = np.median(lw[~up])
     for name, sel in (("below", ~up), ("above", up)):

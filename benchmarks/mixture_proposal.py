@@ -10,52 +10,23 @@ mode, where the default proposal lets chains stick).
 `--temperatures 4`; the second component is `Proposal.fit` of its stored states (from step 200)
 with PARAM above the value (SI). The new fit is bench_fit.py's case (default arts-d2, the ten
 36 lb sines) at the CLI's defaults but the step cap. The mixture's density is the exact one of
-the two normalised t's; the stored run's other move (the random walk) is unchanged. The second
-component comes from an earlier run, so this tests the remedy, it is not one the package could
-run on its own.
+the two normalised t's (proposal.MixtureMove, the move of `--mode-search`); the stored run's
+other move (the random walk) is unchanged. The second component comes from an earlier run: an
+oracle, against which the package's own search (SamplerConfig.mode_search) can be compared.
 """
 from __future__ import annotations
 
 import argparse
-import math
 import time
+from dataclasses import replace
 from pathlib import Path
-
-import emcee
-import numpy as np
-from scipy.special import gammaln
 
 import frictionuq.infer.sampler as sampler_module
 from bench_fit import CASES
 from chain_modes import cold_states
 from frictionuq.infer.fit import FitConfig, fit_campaign
-from frictionuq.infer.proposal import IndependenceMove, Proposal
+from frictionuq.infer.proposal import Proposal
 from frictionuq.infer.sampler import SamplerConfig
-
-
-def log_norm(move: IndependenceMove) -> float:
-    """The constant that IndependenceMove._logq leaves out: the t's normalisation."""
-    d = move.p.mean.size
-    return (gammaln(0.5 * (move.df + d)) - gammaln(0.5 * move.df) - 0.5 * d * math.log(move.df * math.pi)
-            - float(np.sum(np.log(np.diag(move.L)))))
-
-
-class MixtureMove(emcee.moves.MHMove):
-    """Independence Metropolis-Hastings from (1 - w) q1 + w q2, both fixed."""
-
-    def __init__(self, p1: Proposal, p2: Proposal, w: float):
-        self.m = [IndependenceMove(p1), IndependenceMove(p2)]
-        self.lw = [math.log1p(-w) + log_norm(self.m[0]), math.log(w) + log_norm(self.m[1])]
-        self.w = w
-        super().__init__(self._propose, ndim=p1.mean.size)
-
-    def logq(self, x):
-        return np.logaddexp(self.lw[0] + self.m[0]._logq(x), self.lw[1] + self.m[1]._logq(x))
-
-    def _propose(self, x0, random):
-        pick = random.random(x0.shape[0]) < self.w
-        x = np.where(pick[:, None], self.m[1]._propose(x0, random)[0], self.m[0]._propose(x0, random)[0])
-        return x, self.logq(x0) - self.logq(x)
 
 
 def second_component(fit: Path, param: str, above: float) -> tuple[Proposal, int]:
@@ -83,11 +54,9 @@ def main(argv=None) -> None:
     default_moves = sampler_module.moves_for
 
     def moves_for(cfg, proposal=None, stored=False):
-        moves = default_moves(cfg, proposal, stored)
-        if stored and proposal is not None:
-            moves = [(MixtureMove(proposal, p2, a.weight), w) if isinstance(m, IndependenceMove)
-                     else (m, w) for m, w in moves]
-        return moves
+        if stored and proposal is not None:        # the package's mixture move (infer.modes)
+            proposal = replace(proposal, modes=(p2,), mode_weight=a.weight)
+        return default_moves(cfg, proposal, stored)
     sampler_module.moves_for = moves_for         # the stored run's moves only (sampler.run)
     path, sel, _ = CASES[a.case]
     cfg = FitConfig(tests=sel.get("tests"), sampler=SamplerConfig(max_steps=a.max_steps), seed=a.seed)

@@ -21,12 +21,12 @@ def test_every_configuration_gets_its_own_folder(tmp_path):
     bf = _bench_fit()
     names = set()
     for combo in product(["twin", "arts-d1"], ["raw", "kept"], ["chains", "ensemble"], [1, 2],
-                         ["shared", "per_test"], [1, 3], [None, 150.0], [1, 2]):
+                         ["shared", "per_test"], [1, 3], [None, 150.0], [1, 2], [False, True]):
         name = bf.run_name(*combo)
         folder = tmp_path / name
         assert folder.parent == tmp_path and "/" not in name
         names.add(name)
-    assert len(names) == 2 ** 8
+    assert len(names) == 2 ** 9
     assert bf.run_name("arts-d1", "raw", "chains", 1, "shared", 1, 150.0).endswith("-spc150")
 
 

@@ -260,6 +260,19 @@ def test_temperatures_option_reaches_the_sampler_config(tmp_path, monkeypatch):
         assert seen and all(c.sampler.temperatures == want for c in seen), seen
 
 
+@pytest.mark.parametrize("command, target", [
+    ("fit", "frictionuq.infer.fit.fit_campaign"),
+    ("discover", "frictionuq.discrepancy.discover.discover"),
+    ("compare", "frictionuq.infer.compare.compare_campaign"),
+])
+def test_mode_search_option_reaches_the_sampler_config(tmp_path, monkeypatch, command, target):
+    """--mode-search reaches the sampler config of fit, discover and compare (the library call
+    stubbed); the default is no search."""
+    for flag, want in (([], False), (["--mode-search"], True)):
+        seen = _configs_seen(monkeypatch, target, [command, TWIN, "--out", str(tmp_path / "o")] + flag)
+        assert seen and all(c.sampler.mode_search is want for c in seen), seen
+
+
 def test_records_that_cannot_be_fitted_are_named(tmp_path, capsys):
     """A record too short for the displacement-noise estimate, and one whose force does not
     follow the motion (no sliding plateaus), are named in the one-line error (the test id and

@@ -192,6 +192,9 @@ def test_run_walkers_is_refused_below_four_and_weight_above_one():
         SamplerConfig(run_walkers=3)
     with pytest.raises(InputError, match="independence_weight"):
         SamplerConfig(independence_weight=1.5)
+    for bad in (1.0, 0.0, -0.1):
+        with pytest.raises(InputError, match="mode_weight must be"):
+            SamplerConfig(mode_weight=bad)
 
 
 def test_profile_sides_find_a_one_sided_kink_and_widen_the_start_ball_on_its_flat_side():

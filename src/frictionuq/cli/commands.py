@@ -194,7 +194,8 @@ def _discover_notes(a, cfg) -> list[str]:
            for n in cfg.priors if P.PARAMS[n].effect is not None and P.PARAMS[n].effect not in screened]
     if a.no_refit:
         given = [o for o, v in (("--max-steps", a.max_steps), ("--stored-run", a.stored_run),
-                                ("--temperatures", a.temperatures)) if v is not None]
+                                ("--temperatures", a.temperatures),
+                                ("--mode-search", a.mode_search)) if v is not None]
         if given:
             out.append(f"{', '.join(given)}: {'settings' if len(given) > 1 else 'a setting'} of "
                        "the refit's sampler, and --no-refit runs no refit: ignored")
@@ -310,9 +311,10 @@ def _note_not_converged(ids, what: str) -> None:
 
 
 def _sampler_config(a):
-    """The SamplerConfig of the options --max-steps, --stored-run and --temperatures (the rest:
-    defaults)."""
+    """The SamplerConfig of the options --max-steps, --stored-run, --temperatures and
+    --mode-search (the rest: defaults)."""
     from ..infer.sampler import SamplerConfig
     kw = {"max_steps": a.max_steps, "stored_run": a.stored_run,
-          "temperatures": getattr(a, "temperatures", None)}
+          "temperatures": getattr(a, "temperatures", None),
+          "mode_search": getattr(a, "mode_search", None)}
     return SamplerConfig(**{k: v for k, v in kw.items() if v is not None})

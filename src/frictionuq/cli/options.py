@@ -51,6 +51,10 @@ def _add_selection(s, max_steps_help: str) -> None:
                    help="parallel tempering: L tempered copies of each of the stored run's chains "
                         "(default 1: none), for posteriors with separated modes; costs L times "
                         "the evaluations per step")
+    s.add_argument("--mode-search", action="store_true", default=None,
+                   help="give the stored run's independence proposal components on regions the "
+                        "burn-in visited and the proposal misses (a second mode a chain would "
+                        "stick in); no extra model evaluations")
 
 
 def _add_prior(s, whose: str) -> None:

@@ -24,6 +24,9 @@
   inflated by 1.25^2; the last round's proposal is fixed for the whole stored run and kept in
   the HDF5 file) and the rest DE (35 %), DE gamma = 1 (5 %) and snooker (10 %). DE needs more
   than 2 x ndim walkers; the burn-in has max(32, 2 ndim + 4).
+* Mode search (cfg.mode_search, opt-in; infer.modes): every fifth step of every round is kept,
+  and after the last round the states where the posterior outweighs the last proposal by more
+  than e^3 beyond the round's own top per cent get proposal components of their own.
 * The stored run's moves (moves_for(..., stored=True)): with stored_run "chains" the
   independence move and a random walk per walker (proposal.RandomWalkMove), each walker a
   Markov chain of its own; with "ensemble" the independence move beside the DE moves above.
@@ -39,7 +42,8 @@ import emcee
 import numpy as np
 
 from ..interrupts import Interrupts
-from .proposal import IndependenceMove, Proposal, proposal_change
+from . import modes
+from .proposal import Proposal, proposal_change
 from .walkers import pooled_states, reinitialise
 
 
@@ -67,16 +71,16 @@ def moves_for(cfg, proposal=None, stored: bool = False):
         return [(de, 0.7), (emcee.moves.DEMove(gamma0=1.0), 0.1), (emcee.moves.DESnookerMove(), 0.2)]
     w = cfg.independence_weight if stored else 0.5
     if stored and independent(cfg):
-        moves = [(IndependenceMove(proposal), w), (proposal.random_walk(), 1.0 - w)]
+        moves = [(proposal.move(), w), (proposal.random_walk(), 1.0 - w)]
         return [m for m in moves if m[1] > 0]
     rest = 1.0 - w
-    moves = [(IndependenceMove(proposal), w), (de, 0.7 * rest),
+    moves = [(proposal.move(), w), (de, 0.7 * rest),
              (emcee.moves.DEMove(gamma0=1.0), 0.1 * rest), (emcee.moves.DESnookerMove(), 0.2 * rest)]
     return [m for m in moves if m[1] > 0]
 
 
 def burn_in(target, state: np.ndarray, cfg, seed: int, rng, log=None,
-            n_out: int | None = None, intr: Interrupts | None = None):
+            n_out: int | None = None, intr: Interrupts | None = None, names=None):
     """The burn-in phase (module docstring) from walker positions `state` (walkers, ndim) of
     the vectorized emcee target. Rounds of cfg.burn_steps steps, at least cfg.burn_rounds, more
     (up to cfg.burn_max_rounds) while the walkers still climb, some are stuck, or the proposal
@@ -86,16 +90,19 @@ def burn_in(target, state: np.ndarray, cfg, seed: int, rng, log=None,
     proposal fitted before the ensemble has spread is rejected almost always (measured: 0.9 %
     acceptance, tau 149 steps, against 20 % and tau 36 with this rule).
     Returns (positions, proposal.Proposal, steps run); `n_out` positions (default: as many as
-    walkers), drawn like the next round's."""
+    walkers), drawn like the next round's. With cfg.mode_search the proposal gets the
+    components infer.modes finds among the rounds' states (`names`: the coordinates', for the
+    log)."""
     log = log or (lambda msg: None)
     nw, ndim = state.shape
     n_draw = max(nw, n_out or nw)
     proposal, prev, steps = None, -np.inf, 0
+    memory = []                  # (states, log-posteriors) kept of each round for the mode search
     for rnd in range(max(cfg.burn_rounds, cfg.burn_max_rounds)):
-        bs = emcee.EnsembleSampler(nw, ndim, target, vectorize=True, moves=moves_for(cfg, proposal))
-        bs.random_state = np.random.RandomState([seed % (2**32), rnd]).get_state()
-        run_steps(bs, state[:nw], cfg.burn_steps, progress=progress_bar(cfg), intr=intr)
+        bs = _round(target, state[:nw], cfg, proposal, seed, rnd, intr)
         lpc = bs.get_log_prob()
+        if cfg.mode_search:
+            memory.append(modes.keep(bs.get_chain(), lpc))
         new = fit_proposal(bs.get_chain(), lpc)
         ratio, shift = proposal_change(proposal.spread if proposal else None, new.spread)
         proposal = new
@@ -115,7 +122,22 @@ def burn_in(target, state: np.ndarray, cfg, seed: int, rng, log=None,
         prev = level
         if rnd + 1 >= cfg.burn_rounds and settled:
             break
+    if cfg.mode_search:
+        half = bs.get_chain()[cfg.burn_steps // 2:]
+        proposal = modes.find_modes(proposal, np.concatenate([m[0] for m in memory]),
+                                    np.concatenate([m[1] for m in memory]),
+                                    half.reshape(-1, ndim), lpc[cfg.burn_steps // 2:].reshape(-1),
+                                    cfg.mode_weight, names, log)
     return state, proposal, steps
+
+
+def _round(target, state, cfg, proposal, seed: int, rnd: int, intr=None):
+    """One burn-in round of cfg.burn_steps steps from `state` with the moves of `proposal`."""
+    nw, ndim = state.shape
+    bs = emcee.EnsembleSampler(nw, ndim, target, vectorize=True, moves=moves_for(cfg, proposal))
+    bs.random_state = np.random.RandomState([seed % (2**32), rnd]).get_state()
+    run_steps(bs, state, cfg.burn_steps, progress=progress_bar(cfg), intr=intr)
+    return bs
 
 
 def run_steps(sampler, state, n: int, progress=False, intr: Interrupts | None = None):

@@ -14,9 +14,14 @@ beyond the short one. Measured on the stored posterior of that level (3,000 prop
 acceptance 0.22 with the plain t, 0.33 with the Johnson SU marginals (same df and scale).
 
 emcee's MHMove applies the Hastings factor log q(x) - log q(x') returned by `_propose`.
+
+With the burn-in's mode search (infer.modes) the proposal carries further components of the same
+construction, and the stored run proposes from their fixed mixture (MixtureMove, the exact
+mixture density in the Hastings factor).
 """
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass
 
@@ -68,6 +73,10 @@ class Proposal:
     df: float = 5.0
     scale: float = 1.25
     x_cov: np.ndarray | None = None   # covariance of the states in x (the random-walk move's)
+    # further components found by the burn-in's mode search (infer.modes), each a Proposal, and
+    # their total weight in the stored run's independence move (MixtureMove); none by default
+    modes: tuple = ()
+    mode_weight: float = 0.0
 
     @classmethod
     def fit(cls, pool: np.ndarray, df: float = 5.0, scale: float = 1.25) -> "Proposal":
@@ -112,22 +121,37 @@ class Proposal:
         w = np.clip((z - self.a) / self._b, -_SINH_MAX, _SINH_MAX)
         return self.loc + self.sc * np.where(self._su, np.sinh(w), z)
 
-    def to_attrs(self) -> dict:
-        attrs = {"proposal_marginals": np.vstack([self.a, self.b, self.loc, self.sc]),
-                 "proposal_mean": self.mean, "proposal_cov": self.cov,
-                 "proposal_x_centre": self.x_centre, "proposal_x_width": self.x_width,
-                 "proposal_df": self.df, "proposal_scale": self.scale}
+    def to_attrs(self, prefix: str = "proposal") -> dict:
+        """HDF5 attributes (names `prefix`_...); the mode components as `prefix`_mode<k>_..."""
+        attrs = {f"{prefix}_marginals": np.vstack([self.a, self.b, self.loc, self.sc]),
+                 f"{prefix}_mean": self.mean, f"{prefix}_cov": self.cov,
+                 f"{prefix}_x_centre": self.x_centre, f"{prefix}_x_width": self.x_width,
+                 f"{prefix}_df": self.df, f"{prefix}_scale": self.scale}
         if self.x_cov is not None:
-            attrs["proposal_x_cov"] = self.x_cov
+            attrs[f"{prefix}_x_cov"] = self.x_cov
+        if self.modes:
+            attrs[f"{prefix}_modes"] = len(self.modes)
+            attrs[f"{prefix}_mode_weight"] = self.mode_weight
+            for k, m in enumerate(self.modes):
+                attrs.update(m.to_attrs(f"{prefix}_mode{k}"))
         return attrs
 
     @classmethod
-    def from_attrs(cls, attrs) -> "Proposal":
-        a, b, loc, sc = np.array(attrs["proposal_marginals"])
-        return cls(a, b, loc, sc, np.array(attrs["proposal_mean"]), np.array(attrs["proposal_cov"]),
-                   np.array(attrs["proposal_x_centre"]), np.array(attrs["proposal_x_width"]),
-                   float(attrs["proposal_df"]), float(attrs["proposal_scale"]),
-                   np.array(attrs["proposal_x_cov"]) if "proposal_x_cov" in attrs else None)
+    def from_attrs(cls, attrs, prefix: str = "proposal") -> "Proposal":
+        a, b, loc, sc = np.array(attrs[f"{prefix}_marginals"])
+        x_cov = attrs.get(f"{prefix}_x_cov")
+        modes = tuple(cls.from_attrs(attrs, f"{prefix}_mode{k}")
+                      for k in range(int(attrs.get(f"{prefix}_modes", 0))))
+        return cls(a, b, loc, sc, np.array(attrs[f"{prefix}_mean"]), np.array(attrs[f"{prefix}_cov"]),
+                   np.array(attrs[f"{prefix}_x_centre"]), np.array(attrs[f"{prefix}_x_width"]),
+                   float(attrs[f"{prefix}_df"]), float(attrs[f"{prefix}_scale"]),
+                   None if x_cov is None else np.array(x_cov), modes,
+                   float(attrs.get(f"{prefix}_mode_weight", 0.0)))
+
+    def move(self) -> "IndependenceMove":
+        """The stored run's independence move: this t alone, or with mode components the
+        mixture (MixtureMove)."""
+        return MixtureMove(self) if self.modes else IndependenceMove(self)
 
     def random_walk(self) -> "RandomWalkMove":
         """A Gaussian random-walk Metropolis move with the states' covariance scaled by
@@ -201,9 +225,51 @@ class IndependenceMove(emcee.moves.MHMove):
         y = np.einsum("ij,nj->ni", self.Linv, z - self.p.mean)
         return -0.5 * (self.df + self.p.mean.size) * np.log1p(np.einsum("ni,ni->n", y, y) / self.df) + lj
 
-    def _propose(self, x0, random):
-        n, d = x0.shape
-        z = random.standard_normal((n, d))
+    def logq(self, x) -> np.ndarray:
+        """log q(x) up to a constant (the importance weights' denominator; MixtureMove's is
+        normalised)."""
+        return self._logq(x)
+
+    def log_norm(self) -> float:
+        """The constant _logq leaves out: log of the t's normalisation in z."""
+        d = self.p.mean.size
+        return (math.lgamma(0.5 * (self.df + d)) - math.lgamma(0.5 * self.df)
+                - 0.5 * d * math.log(self.df * math.pi) - float(np.sum(np.log(np.diag(self.L)))))
+
+    def draw(self, n: int, random) -> np.ndarray:
+        """n draws from the proposal (emcee's RandomState `random`)."""
+        z = random.standard_normal((n, self.p.mean.size))
         g = random.chisquare(self.df, n)
-        x = self.p.from_z(self.p.mean + np.einsum("ij,nj->ni", self.L, z) * np.sqrt(self.df / g)[:, None])
+        return self.p.from_z(self.p.mean + np.einsum("ij,nj->ni", self.L, z) * np.sqrt(self.df / g)[:, None])
+
+    def _propose(self, x0, random):
+        x = self.draw(x0.shape[0], random)
         return x, self._logq(x0) - self._logq(x)
+
+
+class MixtureMove(emcee.moves.MHMove):
+    """Independence Metropolis-Hastings from a fixed mixture: the proposal's own t with weight
+    1 - mode_weight and each of its K mode components (infer.modes) with mode_weight / K. The
+    Hastings factor is that of the exact mixture density, a log-sum-exp of the normalised
+    component densities (each with its own marginal transforms and Jacobian). A walker picks its
+    component, then draws from it; every component is drawn for every walker and the picked one
+    kept (K + 1 small t draws a step)."""
+
+    def __init__(self, proposal: Proposal):
+        self.parts = [IndependenceMove(p) for p in (proposal, *proposal.modes)]
+        k = len(proposal.modes)
+        w = np.array([1.0 - proposal.mode_weight] + [proposal.mode_weight / k] * k)
+        self.cum = np.cumsum(w)[:-1]
+        self.log_w = np.log(w) + np.array([m.log_norm() for m in self.parts])
+        super().__init__(self._propose, ndim=proposal.mean.size)
+
+    def logq(self, x) -> np.ndarray:
+        """log q(x) of the mixture (normalised)."""
+        terms = np.stack([lw + m._logq(x) for lw, m in zip(self.log_w, self.parts)])
+        return np.logaddexp.reduce(terms, axis=0)
+
+    def _propose(self, x0, random):
+        pick = np.searchsorted(self.cum, random.random_sample(x0.shape[0]), side="right")
+        draws = np.stack([m.draw(x0.shape[0], random) for m in self.parts])
+        x = draws[pick, np.arange(x0.shape[0])]
+        return x, self.logq(x0) - self.logq(x)

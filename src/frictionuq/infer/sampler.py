@@ -30,6 +30,9 @@ until the chain passes the convergence criteria.
     R-hat was made for. The random walk is proposal.RandomWalkMove, a displacement per walker
     (emcee's GaussianMove with a covariance matrix moves every walker by one shared vector).
     With `temperatures` L > 1 each chain has L - 1 tempered copies (infer.tempering; opt-in).
+    With `mode_search` (opt-in) the independence move proposes from a mixture: the burn-in's t
+    and components on regions the burn-in visited that the t misses (infer.modes), weight
+    `mode_weight` (0.1) in all; no extra model evaluation.
   - "ensemble": the burn-in's walkers with the independence move (the same weight) and the DE
     moves for the rest (70/10/20 as above).
   Measured (docs/log-calibration.md): BRFD twin 267 N, one shared burn-in, 16 chains met R-hat
@@ -119,6 +122,9 @@ class SamplerConfig:
     temperatures: int = 1             # tempered copies of each chain (1: none; infer.tempering)
     temper_ratio: float | None = None  # the ladder's beta ratio; None: tempering.default_ratio
     start_profile: bool = True        # start ball from 1-D profiles (walkers.profile_sides)
+    mode_search: bool = False         # proposal components on regions the burn-in visited and
+                                      # its proposal misses (infer.modes; opt-in)
+    mode_weight: float = 0.1          # their total weight in the independence move
     thin_output: int | None = None    # default: about tau/4
     progress: bool | None = None      # default: on a terminal
 
@@ -146,6 +152,8 @@ class SamplerConfig:
         if not self.independence_weight <= 1:
             raise InputError(f"sampler: independence_weight must be in (0, 1], got "
                              f"{self.independence_weight!r}")
+        if not self.mode_weight < 1:
+            raise InputError(f"sampler: mode_weight must be in (0, 1), got {self.mode_weight!r}")
         if self.temper_ratio is not None and not self.temper_ratio < 1:
             raise InputError(f"sampler: temper_ratio must be in (0, 1), got {self.temper_ratio!r}")
         if self.temperatures > 1 and not (self.stored_run == "chains" and self.independence):
@@ -182,6 +190,7 @@ class SampleResult:
     # (draws, walkers, n_records, N_STATS): each record's residual sufficient statistics at
     # every kept draw (emcee blobs; outputs draws the noise parameters from them)
     noise_stats: np.ndarray | None = None
+    mode_components: int = 0     # components the mode search added to the independence move
 
 
 def _nwalkers(cfg: SamplerConfig, ndim: int) -> int:
@@ -236,7 +245,8 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
                 + ", ".join(f"{n} {lo:g}/{hi:g}" for n, (lo, hi) in zip(sp.names, sides)))
         state = sp.to_u(initial_ball(theta_map, cov, nw, rng, sp, sides))
         state, proposal, burn_in_steps = burn_in(target, state, cfg, seed, rng, log, intr=intr,
-                                                 n_out=nrun if nrun != nw else None)
+                                                 n_out=nrun if nrun != nw else None,
+                                                 names=sp.names)
         state = state[:nrun]
 
     if resumed:      # the stored run's proposal is kept in the backend's attributes
@@ -282,6 +292,7 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
     res.seconds += before["seconds"]
     res.earlier_seconds = before["seconds"]
     res.resumed_from = list(account["resumed_from"])
+    res.mode_components = len(proposal.modes) if proposal is not None else 0
     return res
 
 

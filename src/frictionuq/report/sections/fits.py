@@ -130,13 +130,16 @@ def _stored_run(rec: dict, smp: dict) -> str:
     if design is None and "run_walkers" in cfg:      # a fit written before 2026-12-01
         design = "ensemble" if cfg["run_walkers"] is None else "chains"
     n = smp.get("walkers", DASH)
+    k = int(smp.get("mode_components") or 0)
+    modes = "" if not k else (f"; the independence proposal a mixture with {k} mode "
+                              f"component{'s' if k > 1 else ''} found in the burn-in")
     if design == "chains":
         L = int(cfg.get("temperatures") or 1)
         tempered = "" if L < 2 else (f", each with {L - 1} tempered copies (parallel tempering; "
                                      f"only the untempered chains are the posterior)")
-        return f"{n} independent chains (independence move and random walk){tempered}"
+        return f"{n} independent chains (independence move and random walk){tempered}{modes}"
     if design == "ensemble":
-        return f"ensemble of {n} walkers (independence and differential-evolution moves)"
+        return f"ensemble of {n} walkers (independence and differential-evolution moves){modes}"
     return DASH
 
 

@@ -1,0 +1,216 @@
+"""The burn-in's mode search (frictionuq.infer.modes) and the mixture independence move it feeds
+(proposal.MixtureMove): the mixture's exact density and Hastings factor, its draws, the
+attributes' round trip, the search's flags on a missed mode and on a covered posterior, and a
+seeded statistical harness: on a two-mode target whose minor mode the proposal misses, the
+stored run's chains stick without the component and sample the target with it."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import emcee
+import pytest
+import numpy as np
+from scipy.stats import multivariate_normal, multivariate_t
+from scipy.stats import t as student_t
+
+from frictionuq import azadapter
+from frictionuq.infer.burnin import moves_for
+from frictionuq.infer.modes import find_modes, flagged
+from frictionuq.infer.proposal import IndependenceMove, MixtureMove, Proposal
+from frictionuq.infer.sampler import SamplerConfig
+
+
+def _pair(w=0.2):
+    a = Proposal.gaussian(np.zeros(2), np.array([[1.0, 0.3], [0.3, 2.0]]), df=5, scale=1.0)
+    b = Proposal.gaussian(np.array([6.0, -1.0]), np.diag([0.5, 0.3]), df=5, scale=1.0)
+    return replace(a, modes=(b,), mode_weight=w), a, b
+
+
+def test_mixture_density_is_the_exact_normalised_mixture_and_its_hastings_factor():
+    """log q of the move equals log((1 - w) t_a + w t_b) with scipy's normalised t densities to
+    1e-9 (so it integrates to one), and the Hastings factor is log q(x) - log q(x')."""
+    p, a, b = _pair(0.2)
+    mv = p.move()
+    assert isinstance(mv, MixtureMove)
+    x = np.random.default_rng(0).normal(2.0, 3.0, (50, 2))
+    ref = np.logaddexp(np.log(0.8) + multivariate_t(a.mean, a.cov, df=5).logpdf(x),
+                       np.log(0.2) + multivariate_t(b.mean, b.cov, df=5).logpdf(x))
+    assert np.allclose(mv.logq(x), ref, atol=1e-9, rtol=0)
+    y, f = mv._propose(x, np.random.RandomState(1))
+    assert np.allclose(f, mv.logq(x) - mv.logq(y))
+    assert isinstance(a.move(), IndependenceMove) and not isinstance(a.move(), MixtureMove)
+
+
+def test_mixture_draws_pick_each_component_at_its_weight():
+    """40,000 draws: the share with x0 > 3 is the mixture's exact probability there,
+    0.8 P_a(x0 > 3) + 0.2 P_b(x0 > 3) from the components' t marginals, within 5 binomial
+    standard errors (false-alarm rate below 1e-6); a move that ignored the weights (or drew only
+    the first component) would be off by 0.05 or more."""
+    p, a, b = _pair(0.2)
+    n = 40000
+    y, _ = p.move()._propose(np.zeros((n, 2)), np.random.RandomState(2))
+    exact = (0.8 * student_t.sf(3.0, 5, a.mean[0], np.sqrt(a.cov[0, 0]))
+             + 0.2 * student_t.sf(3.0, 5, b.mean[0], np.sqrt(b.cov[0, 0])))
+    share = np.mean(y[:, 0] > 3.0)
+    assert abs(share - exact) < 5 * np.sqrt(exact * (1 - exact) / n), (share, exact)
+
+
+def test_attrs_round_trip_keeps_the_mode_components():
+    p, _, _ = _pair(0.1)
+    q = Proposal.from_attrs(p.to_attrs())
+    assert len(q.modes) == 1 and q.mode_weight == 0.1
+    x = np.random.default_rng(3).normal(0, 3, (20, 2))
+    assert np.array_equal(p.move().logq(x), q.move().logq(x))
+    assert Proposal.from_attrs(_pair(0.1)[1].to_attrs()).modes == ()
+
+
+# a two-mode target in 3-D: 95 % N(0, I), 5 % N(M, 0.5^2 I), far apart (the dataset-2 fit's d3:
+# a second mode holding 4-6 % of the mass)
+M = np.array([8.0, 2.0, 0.0])
+W2 = 0.05
+
+
+def _log_target(x):
+    return np.logaddexp(np.log(1 - W2) + multivariate_normal(np.zeros(3)).logpdf(x),
+                        np.log(W2) + multivariate_normal(M, 0.25 * np.eye(3)).logpdf(x))
+
+
+def _draws(n, rng, minor=False):
+    return rng.standard_normal((n, 3)) * (0.5 if minor else 1.0) + (M if minor else 0.0)
+
+
+def test_the_search_fits_a_component_on_a_missed_mode_and_none_on_a_covered_posterior():
+    """The proposal is fitted to the major mode's draws (the burn-in's last round). Among kept
+    states of both modes (400 of the minor one, as early burn-in rounds that started there
+    would hold) the search flags the minor mode's and fits one component near its centre; with
+    the major mode's states alone it flags none and returns the proposal unchanged. Fixed seeds:
+    deterministic."""
+    rng = np.random.default_rng(4)
+    ref = _draws(4000, rng)
+    main = Proposal.fit(ref)
+    kept = np.vstack([_draws(3000, rng), _draws(400, rng, minor=True)])
+    msgs = []
+    p = find_modes(main, kept, _log_target(kept), ref, _log_target(ref), 0.1, log=msgs.append)
+    assert len(p.modes) == 1 and p.mode_weight == 0.1, msgs
+    assert np.all(np.abs(p.modes[0].x_centre - M) < 0.2), p.modes[0].x_centre
+    mask = flagged(kept, _log_target(kept), ref, _log_target(ref), IndependenceMove(main)._logq)
+    assert mask[3000:].mean() > 0.9 and mask[:3000].sum() == 0
+    assert "component 1 fitted to" in msgs[0]
+    same = find_modes(main, kept[:3000], _log_target(kept[:3000]), ref, _log_target(ref), 0.1,
+                      log=msgs.append)
+    assert same is main and "none added" in msgs[-1]
+
+
+def _stored_run(proposal, seed=5, steps=3000):
+    """The stored run's moves (16 chains: independence and random walk) on the two-mode target,
+    every chain started in the major mode: (chain (steps, 16, 3), R-hat max)."""
+    moves = moves_for(SamplerConfig(run_walkers=16), proposal, stored=True)
+    s = emcee.EnsembleSampler(16, 3, _log_target, vectorize=True, moves=moves)
+    s.random_state = np.random.RandomState(seed).get_state()
+    s.run_mcmc(_draws(16, np.random.default_rng(seed)), steps, progress=False)
+    chain = s.get_chain(discard=500)
+    r_hat = np.max(azadapter.diagnostics(np.transpose(chain, (1, 0, 2)))["r_hat"])
+    return chain, float(r_hat)
+
+
+def test_with_the_component_the_chains_sample_the_minor_mode_at_its_weight(seed=5):
+    """Seeded statistical harness. Without the component the independence t (fitted to the major
+    mode) reaches the minor mode only in its far tail: a chain enters it rarely and stays
+    (measured: R-hat 1.068, one chain 60 % of its steps there, most chains never). With the
+    component the search fits, the share of draws in the minor mode is its weight 0.05 within 5
+    standard errors of a proportion with the chain's effective sample size (false-alarm rate
+    below 1e-5; measured 0.052), and R-hat over the 16 chains is below 1.01 (measured 1.0009)."""
+    rng = np.random.default_rng(6)
+    ref = _draws(4000, rng)
+    main = Proposal.fit(ref)
+    kept = np.vstack([_draws(3000, rng), _draws(400, rng, minor=True)])
+    with_mode = find_modes(main, kept, _log_target(kept), ref, _log_target(ref), 0.1)
+    chain, r_mode = _stored_run(with_mode, seed)
+    plain, r_plain = _stored_run(main, seed)
+    assert r_plain > 1.05 and np.max(np.mean(plain[..., 0] > 3.0, axis=0)) > 0.25, r_plain
+    assert r_mode < 1.01, r_mode
+    minor = chain[..., 0] > 3.0
+    tau = max(1.0, float(emcee.autocorr.integrated_time(minor[..., None].astype(float),
+                                                        quiet=True)[0]))
+    n_eff = minor.size / tau
+    assert abs(minor.mean() - W2) < 5 * np.sqrt(W2 * (1 - W2) / n_eff), (minor.mean(), n_eff)
+
+
+def _burn_in(mode_search: bool):
+    """The burn-in on a 6-D standard Gaussian from a ball narrow along one axis (as
+    test_infer_sampler's), with or without the mode search: (state, proposal, steps, log)."""
+    from frictionuq.infer.burnin import burn_in
+
+    def target(x):
+        return (-0.5 * np.sum(x * x, axis=1))[:, None]
+
+    rng = np.random.default_rng(3)
+    state = rng.standard_normal((32, 6)) * np.r_[1e-3, np.ones(5)]
+    cfg = SamplerConfig(nwalkers=32, burn_steps=100, progress=False, mode_search=mode_search)
+    msgs = []
+    return (*burn_in(target, state, cfg, seed=7, rng=rng, log=msgs.append), msgs)
+
+
+def test_on_a_posterior_the_proposal_covers_the_search_changes_nothing():
+    """On a Gaussian the burn-in with the search gives the same walkers, steps and proposal as
+    without it, no component, and says so in its log. Deterministic."""
+    s0, p0, n0, _ = _burn_in(False)
+    s1, p1, n1, log = _burn_in(True)
+    assert n0 == n1 and np.array_equal(s0, s1) and p1.modes == ()
+    assert np.array_equal(p0.cov, p1.cov) and np.array_equal(p0.mean, p1.mean)
+    assert "mode search" in log[-1] and "none added" in log[-1]
+
+
+def test_a_component_keeps_the_flagged_states_centre_and_correlations_and_widens_to_half_the_main():
+    """`component`: the pool's mean and correlations, and each coordinate's sd raised to half
+    the main t's where the pool is narrower (a pool of walkers' passage is narrower than the
+    region it marks)."""
+    from frictionuq.infer.modes import WIDEN, component
+    rng = np.random.default_rng(8)
+    main = Proposal.fit(rng.standard_normal((4000, 3)) * [1.0, 1.0, 0.1])
+    pool = rng.multivariate_normal([4.0, 0.0, 0.0], [[0.04, 0.03, 0], [0.03, 0.04, 0], [0, 0, 2.0]], 800)
+    c = component(pool, main)
+    sd = np.sqrt(np.diag(c.cov))
+    main_sd = np.sqrt(np.diag(main.x_cov))
+    assert np.allclose(c.mean, pool.mean(0))
+    assert np.allclose(sd[:2], WIDEN * main_sd[:2]) and sd[2] == pytest.approx(pool[:, 2].std())
+    assert np.allclose(c.cov / np.outer(sd, sd), np.corrcoef(pool.T))
+
+
+def test_the_burn_in_finds_a_narrow_mode_it_started_in():
+    """Through the burn-in itself: a 3-D target with a narrow minor mode (5 %, sd 0.15, at
+    x0 = 2.5) that holds the highest density, as dataset 2's MAP lies in d3's minor mode, and
+    walkers started there. The walkers leave for the major mode, the search flags the states of
+    the first rounds and fits one component on the minor mode (centre within 0.1: measured
+    2.51; widths half the main t's, about 0.5), the main t on the major one. Fixed seeds:
+    deterministic (this target's burn-in at seed 2 covers the minor mode with its main t and
+    adds no component: not every start needs one)."""
+    from frictionuq.infer.burnin import burn_in
+    m, s, w2 = np.r_[2.5, 0.0, 0.0], 0.15, 0.05
+
+    def target(x):
+        return np.logaddexp(np.log(1 - w2) + multivariate_normal(np.zeros(3)).logpdf(x),
+                            np.log(w2) + multivariate_normal(m, s * s * np.eye(3)).logpdf(x))[:, None]
+
+    rng = np.random.default_rng(1)
+    state = m + 0.05 * rng.standard_normal((32, 3))
+    msgs = []
+    cfg = SamplerConfig(nwalkers=32, burn_steps=100, progress=False, mode_search=True)
+    _, p, _ = burn_in(target, state, cfg, seed=1, rng=rng, log=msgs.append)
+    assert len(p.modes) == 1 and "component 1 fitted to" in msgs[-1], msgs
+    assert np.all(np.abs(p.modes[0].x_centre - m) < 0.1), p.modes[0].x_centre
+    assert np.all(np.abs(p.modes[0].x_width - 0.5) < 0.1), p.modes[0].x_width
+    assert np.all(np.abs(p.x_centre) < 0.2) and np.all(np.abs(p.x_width - 1) < 0.2), p.x_width
+
+
+def test_a_stored_run_keeps_its_mode_components_for_a_resume(tmp_path):
+    """The mixture is written into the chain's HDF5 attributes and read back whole, so a resumed
+    run proposes from the same mixture."""
+    from frictionuq.infer.storage import load_proposal, open_backend, store_proposal
+    p, _, _ = _pair(0.1)
+    be, _ = open_backend(tmp_path / "chain.h5", 8, 2, resume=False)
+    store_proposal(be, p)
+    q = load_proposal(be)
+    x = np.random.default_rng(9).normal(0, 3, (20, 2))
+    assert len(q.modes) == 1 and q.mode_weight == 0.1
+    assert np.array_equal(p.move().logq(x), q.move().logq(x))
