@@ -195,6 +195,8 @@ def test_run_walkers_is_refused_below_four_and_weight_above_one():
     for bad in (1.0, 0.0, -0.1):
         with pytest.raises(InputError, match="mode_weight must be"):
             SamplerConfig(mode_weight=bad)
+    with pytest.raises(InputError, match="mode_search needs the independence move"):
+        SamplerConfig(mode_search=True, independence=False)
 
 
 def test_profile_sides_find_a_one_sided_kink_and_widen_the_start_ball_on_its_flat_side():

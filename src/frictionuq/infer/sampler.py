@@ -154,6 +154,9 @@ class SamplerConfig:
                              f"{self.independence_weight!r}")
         if not self.mode_weight < 1:
             raise InputError(f"sampler: mode_weight must be in (0, 1), got {self.mode_weight!r}")
+        if self.mode_search and not self.independence:
+            raise InputError("sampler: mode_search needs the independence move (its components "
+                             "are the independence proposal's); set independence = true")
         if self.temper_ratio is not None and not self.temper_ratio < 1:
             raise InputError(f"sampler: temper_ratio must be in (0, 1), got {self.temper_ratio!r}")
         if self.temperatures > 1 and not (self.stored_run == "chains" and self.independence):
