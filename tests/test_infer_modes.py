@@ -8,8 +8,8 @@ from __future__ import annotations
 from dataclasses import replace
 
 import emcee
-import pytest
 import numpy as np
+import pytest
 from scipy.stats import multivariate_normal, multivariate_t
 from scipy.stats import t as student_t
 

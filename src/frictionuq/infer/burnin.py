@@ -99,7 +99,9 @@ def burn_in(target, state: np.ndarray, cfg, seed: int, rng, log=None,
     proposal, prev, steps = None, -np.inf, 0
     memory = []                  # (states, log-posteriors) kept of each round for the mode search
     for rnd in range(max(cfg.burn_rounds, cfg.burn_max_rounds)):
-        bs = _round(target, state[:nw], cfg, proposal, seed, rnd, intr)
+        bs = emcee.EnsembleSampler(nw, ndim, target, vectorize=True, moves=moves_for(cfg, proposal))
+        bs.random_state = np.random.RandomState([seed % (2**32), rnd]).get_state()
+        run_steps(bs, state[:nw], cfg.burn_steps, progress=progress_bar(cfg), intr=intr)
         lpc = bs.get_log_prob()
         if cfg.mode_search:
             memory.append(modes.keep(bs.get_chain(), lpc))
@@ -129,15 +131,6 @@ def burn_in(target, state: np.ndarray, cfg, seed: int, rng, log=None,
                                     half.reshape(-1, ndim), lpc[cfg.burn_steps // 2:].reshape(-1),
                                     cfg.mode_weight, names, log)
     return state, proposal, steps
-
-
-def _round(target, state, cfg, proposal, seed: int, rnd: int, intr=None):
-    """One burn-in round of cfg.burn_steps steps from `state` with the moves of `proposal`."""
-    nw, ndim = state.shape
-    bs = emcee.EnsembleSampler(nw, ndim, target, vectorize=True, moves=moves_for(cfg, proposal))
-    bs.random_state = np.random.RandomState([seed % (2**32), rnd]).get_state()
-    run_steps(bs, state, cfg.burn_steps, progress=progress_bar(cfg), intr=intr)
-    return bs
 
 
 def run_steps(sampler, state, n: int, progress=False, intr: Interrupts | None = None):

@@ -47,6 +47,8 @@ regions make one broad component first; the next round of the search then fits w
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from .proposal import Proposal
@@ -117,7 +119,6 @@ def component(pool: np.ndarray, main: Proposal) -> Proposal:
 
 
 def _with_modes(p: Proposal, modes, weight: float) -> Proposal:
-    from dataclasses import replace
     return replace(p, modes=tuple(modes), mode_weight=float(weight))
 
 
