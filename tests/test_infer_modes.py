@@ -182,7 +182,10 @@ def test_the_burn_in_finds_a_narrow_mode_it_started_in():
     x0 = 2.5) that holds the highest density, as dataset 2's MAP lies in d3's minor mode, and
     walkers started there. The walkers leave for the major mode, the search flags the states of
     the first rounds and fits one component on the minor mode (centre within 0.1: measured
-    2.51; widths half the main t's, about 0.5), the main t on the major one. Fixed seeds:
+    2.51; widths half the main t's, about 0.5), the main t on the major one. The ensemble that
+    explores the region leaves this mode too (it is narrow and next to the major one), so the
+    component falls back to the flagged states, widened, and says so; the exploration's steps
+    count as burn-in steps. Fixed seeds:
     deterministic (this target's burn-in at seed 2 covers the minor mode with its main t and
     adds no component: not every start needs one)."""
     from frictionuq.infer.burnin import burn_in
@@ -196,8 +199,11 @@ def test_the_burn_in_finds_a_narrow_mode_it_started_in():
     state = m + 0.05 * rng.standard_normal((32, 3))
     msgs = []
     cfg = SamplerConfig(nwalkers=32, burn_steps=100, progress=False, mode_search=True)
-    _, p, _ = burn_in(target, state, cfg, seed=1, rng=rng, log=msgs.append)
+    _, p, steps = burn_in(target, state, cfg, seed=1, rng=rng, log=msgs.append)
     assert len(p.modes) == 1 and "component 1 fitted to" in msgs[-1], msgs
+    assert "the ensemble started there kept only" in msgs[-1], msgs[-1]
+    rounds = sum(m.startswith("burn-in round") for m in msgs)
+    assert steps == (rounds + 1) * 100, (steps, rounds)      # one exploring round of 100 steps
     assert np.all(np.abs(p.modes[0].x_centre - m) < 0.1), p.modes[0].x_centre
     assert np.all(np.abs(p.modes[0].x_width - 0.5) < 0.1), p.modes[0].x_width
     assert np.all(np.abs(p.x_centre) < 0.2) and np.all(np.abs(p.x_width - 1) < 0.2), p.x_width
@@ -214,3 +220,34 @@ def test_a_stored_run_keeps_its_mode_components_for_a_resume(tmp_path):
     x = np.random.default_rng(9).normal(0, 3, (20, 2))
     assert len(q.modes) == 1 and q.mode_weight == 0.1
     assert np.array_equal(p.move().logq(x), q.move().logq(x))
+
+
+def test_an_ensemble_started_at_the_flagged_states_draws_the_modes_real_width():
+    """The flagged states mark where the walkers passed, not the mode's shape (dataset 2: d3's
+    width among them a fifth of the mode's). On a minor mode of sd 0.2 (5 %, 8 sds of the major
+    one away) flagged only in a passage of sd 0.04: without exploring, the component gets the
+    widened widths (half the main t's, 0.5); with burnin.explore (an ensemble of 32 walkers
+    started at the flagged states, two rounds of 100 steps), it is fitted to draws of the mode
+    itself: centre within 0.1 and every width within 0.05 of 0.2 (x_width: half the 15.9-84.1 %
+    range). Fixed seeds: deterministic."""
+    from frictionuq.infer.burnin import explore
+    m = np.array([8.0, 2.0, 0.0])
+
+    def target(x):
+        x = np.atleast_2d(x)
+        return np.logaddexp(np.log(0.95) + multivariate_normal(np.zeros(3)).logpdf(x),
+                            np.log(0.05) + multivariate_normal(m, 0.04 * np.eye(3)).logpdf(x))
+
+    rng = np.random.default_rng(11)
+    ref = rng.standard_normal((4000, 3))
+    main = Proposal.fit(ref)
+    kept = np.vstack([rng.standard_normal((2000, 3)), m + 0.04 * rng.standard_normal((300, 3))])
+    cfg = SamplerConfig(nwalkers=32, burn_steps=100, progress=False, mode_search=True)
+    msgs = []
+    plain = find_modes(main, kept, target(kept), ref, target(ref), 0.1)
+    p = find_modes(main, kept, target(kept), ref, target(ref), 0.1, log=msgs.append,
+                   explore=lambda pool, k, inside: explore(target, pool, 32, cfg, 3, k, inside)[:2])
+    assert np.all(np.abs(plain.modes[0].x_width - 0.5) < 0.05), plain.modes[0].x_width
+    assert len(p.modes) == 1 and "drawn by an ensemble" in msgs[0], msgs
+    assert np.all(np.abs(p.modes[0].x_centre - m) < 0.1), p.modes[0].x_centre
+    assert np.all(np.abs(p.modes[0].x_width - 0.2) < 0.05), p.modes[0].x_width

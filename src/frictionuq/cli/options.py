@@ -54,7 +54,7 @@ def _add_selection(s, max_steps_help: str) -> None:
     s.add_argument("--mode-search", action="store_true", default=None,
                    help="give the stored run's independence proposal components on regions the "
                         "burn-in visited and the proposal misses (a second mode a chain would "
-                        "stick in); no extra model evaluations")
+                        "stick in); each region found costs two burn-in rounds that explore it")
 
 
 def _add_prior(s, whose: str) -> None:

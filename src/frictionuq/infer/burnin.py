@@ -92,7 +92,7 @@ def burn_in(target, state: np.ndarray, cfg, seed: int, rng, log=None,
     Returns (positions, proposal.Proposal, steps run); `n_out` positions (default: as many as
     walkers), drawn like the next round's. With cfg.mode_search the proposal gets the
     components infer.modes finds among the rounds' states (`names`: the coordinates', for the
-    log)."""
+    log), each after `explore` ran an ensemble in its region (its steps count as run)."""
     log = log or (lambda msg: None)
     nw, ndim = state.shape
     n_draw = max(nw, n_out or nw)
@@ -124,13 +124,47 @@ def burn_in(target, state: np.ndarray, cfg, seed: int, rng, log=None,
         prev = level
         if rnd + 1 >= cfg.burn_rounds and settled:
             break
+    explored = [0]                 # steps the mode search's exploring ensembles ran (burn-in steps)
     if cfg.mode_search:
+        def _explore(pool, k, inside):
+            xs, xl, n = explore(target, pool, nw, cfg, seed, k, inside, intr)
+            explored[0] += n
+            return xs, xl
         half = bs.get_chain()[cfg.burn_steps // 2:]
         proposal = modes.find_modes(proposal, np.concatenate([m[0] for m in memory]),
                                     np.concatenate([m[1] for m in memory]),
                                     half.reshape(-1, ndim), lpc[cfg.burn_steps // 2:].reshape(-1),
-                                    cfg.mode_weight, names, log)
-    return state, proposal, steps
+                                    cfg.mode_weight, names, log,
+                                    explore=_explore)
+    return state, proposal, steps + explored[0]
+
+
+def explore(target, pool: np.ndarray, nw: int, cfg, seed: int, k: int, inside,
+            intr: Interrupts | None = None) -> tuple[np.ndarray, np.ndarray, int]:
+    """Draws of the region a mode search's flagged `pool` marks (infer.modes, component `k`;
+    `inside(states, log_prob)`: the mask of the states in it): modes.EXPLORE_ROUNDS rounds of
+    cfg.burn_steps steps of the first burn-in round's moves (differential evolution; not the
+    independence move, whose t is the main mode's), the first from `nw` distinct states of the
+    pool, each later one from distinct states of the previous round's second half that are
+    inside (walkers that left are dropped). Returns the rounds' second halves ((n, D), (n,))
+    and the steps run:
+    the walkers stay near where they start, as the stored run's chains did in dataset 2's
+    second mode, so their states cover the region where the pool (where the burn-in's walkers
+    passed) covered a fifth of its width."""
+    rng = np.random.default_rng([seed % (2**32), 1000 + k])
+    start = pool[rng.choice(len(pool), size=min(nw, len(pool)), replace=False)]
+    n, ndim, xs, xl = cfg.burn_steps, pool.shape[1], [], []
+    for rnd in range(modes.EXPLORE_ROUNDS):
+        es = emcee.EnsembleSampler(len(start), ndim, target, vectorize=True, moves=moves_for(cfg))
+        es.random_state = np.random.RandomState([seed % (2**32), 1000 + k, rnd]).get_state()
+        run_steps(es, start, n, progress=progress_bar(cfg), intr=intr)
+        xs.append(es.get_chain()[n // 2:].reshape(-1, ndim))
+        xl.append(es.get_log_prob()[n // 2:].reshape(-1))
+        there = np.unique(xs[-1][inside(xs[-1], xl[-1])], axis=0)
+        if len(there) < len(start):      # too few left inside to start another round
+            break
+        start = there[rng.choice(len(there), size=len(start), replace=False)]
+    return np.concatenate(xs), np.concatenate(xl), n * len(xs)
 
 
 def run_steps(sampler, state, n: int, progress=False, intr: Interrupts | None = None):

@@ -15,25 +15,33 @@ proposal component on that mode (fitted to an earlier run's states) the fit conv
 How: every `MEMORY_STRIDE`-th step of every burn-in round is kept (the burn-in starts at the
 MAP, so its first rounds pass through regions the later ones leave). After the last round, the
 log importance weight lw = log p(x) - log q(x) under its proposal is computed for the kept states
-(the log-posteriors are the ones the burn-in computed; no new evaluation). The reference is the
+(the log-posteriors are the ones the burn-in computed; no new evaluation; the exploration below
+costs EXPLORE_ROUNDS burn-in rounds per component found). The reference is the
 last round's second half, the states the proposal was fitted to. A kept state is flagged when
   * lw exceeds the reference's 99 % point by more than `MARGIN` nats (e^3: a proposal back from
     there is accepted at most about 5 % as often as from the bulk's top per cent), and
   * its log-posterior is no more than `max(10, 3 sqrt(D/2))` below the reference's median (the
     burn-in's own threshold for a stuck walker: a transient state of a walker still climbing
     from its start is not a region of the posterior).
-With at least `MIN_STATES` distinct flagged states (and 2 D + 2), a t is fitted to them
-(`component`, below) and added as a component; the flagged states are then weighed again under the
-mixture, and a further component is fitted to those still flagged, up to `MAX_MODES`. The
-components share the weight `mode_weight` (SamplerConfig; 0.1, the weight that made the
-dataset-2 fit converge).
+With at least `MIN_STATES` distinct flagged states (and 2 D + 2), a t is fitted to them, after
+exploring their region (Shape, below), and added as a component; the flagged states are then
+weighed again under the mixture, and a further component is fitted to those still flagged, up
+to `MAX_MODES`. The components share the weight `mode_weight` (SamplerConfig; 0.1, the weight
+that made the dataset-2 fit converge).
 
-Width (`component`): the flagged states are where the walkers passed, not draws of the region
-they mark (on dataset 2, the start ball around the MAP, whose d3 width was a fifth of the second
-mode's: compared with a t fitted to another run's states there), so each coordinate's width is
-raised to at least half the main t's (WIDEN), the flagged states' correlations kept. A refit of
-the components on a further burn-in round run with the mixture was tried and not kept
-(docs/log-calibration.md, 2026-12-06, night).
+Shape: the flagged states are where the walkers passed, not draws of the region they mark (on
+dataset 2, the start ball around the MAP, whose d3 width was a fifth of the second mode's:
+compared with a t fitted to another run's states there). So the region is explored first
+(burnin.explore): an ensemble started at distinct flagged states runs EXPLORE_ROUNDS rounds of
+the burn-in's length with the first round's moves (differential evolution only), each round
+after the first started at distinct states of the previous round's second half that are still
+flagged (walkers that left the region for the main mode are dropped, as the burn-in drops stuck
+walkers), and the component is `Proposal.fit` (the main t's construction) to the flagged states
+of the rounds' second halves. When fewer than MIN_STATES (and 2 D + 2) remain, the component
+falls back to the flagged states themselves (`component`: each coordinate's width raised to at
+least half the main t's, WIDEN, their correlations kept). A refit of the components on a
+further burn-in round run with the mixture was tried and not kept (docs/log-calibration.md,
+2026-12-06, night).
 
 Exactness: the mixture is fixed before the stored run and its density is exact (MixtureMove), so
 the stored run's target is the posterior whatever the components are; a poor component only
@@ -63,6 +71,8 @@ MIN_STATES = 50
 MAX_MODES = 3
 #: a component's width in each coordinate at least this fraction of the main t's
 WIDEN = 0.5
+#: the exploring ensemble runs this many burn-in rounds' worth of steps (burnin.explore)
+EXPLORE_ROUNDS = 2
 
 
 def keep(chain: np.ndarray, log_prob: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -82,9 +92,13 @@ def flagged(states, log_prob, ref_states, ref_log_prob, logq) -> np.ndarray:
 
 
 def find_modes(proposal: Proposal, states, log_prob, ref_states, ref_log_prob,
-               weight: float, names=None, log=None) -> Proposal:
+               weight: float, names=None, log=None, explore=None) -> Proposal:
     """`proposal` with the components the search finds (module docstring), or unchanged.
-    `states`, `log_prob`: the burn-in's kept states; `ref_*`: the last round's second half."""
+    `states`, `log_prob`: the burn-in's kept states; `ref_*`: the last round's second half.
+    `explore(pool, k, inside)`: draws of the region the flagged `pool` marks ((n, D) states and
+    their log-posteriors; burnin.explore, an ensemble run started there; `inside(states,
+    log_prob)` the mask of the flagged ones), or None: the component is then fitted to the pool
+    itself (`component`)."""
     log = log or (lambda msg: None)
     states, log_prob = np.asarray(states, float), np.asarray(log_prob, float)
     d = states.shape[1]
@@ -98,11 +112,24 @@ def find_modes(proposal: Proposal, states, log_prob, ref_states, ref_log_prob,
                     f"outweighs the proposal by more than e^{MARGIN:g} (a component needs "
                     f"{max(MIN_STATES, 2 * d + 2)}): none added")
             break
-        comp = component(pool, proposal)
+        k = len(current.modes) + 1
+        comp, how = component(pool, proposal), f"fitted to {len(pool)} distinct burn-in states"
+        if explore is not None:
+            def inside(xs, xl, logq=current.move().logq):
+                return flagged(xs, xl, ref_states, ref_log_prob, logq)
+            xs, xl = explore(pool, k, inside)
+            region = np.unique(xs[inside(xs, xl)], axis=0)
+            if len(region) >= max(MIN_STATES, 2 * d + 2):
+                comp = Proposal.fit(region)
+                how = (f"fitted to {len(region)} distinct states of {len(xs)} drawn by an "
+                       f"ensemble started at {len(pool)} flagged burn-in states")
+            else:
+                how += (f" (the ensemble started there kept only {len(region)} distinct states "
+                        f"in the region)")
         current = _with_modes(proposal, (*current.modes, comp), weight)
-        log(f"mode search: component {len(current.modes)} fitted to {len(pool)} distinct burn-in "
-            f"states ({mask.mean():.1%} of the {len(states)} kept) where the posterior outweighs "
-            f"the proposal by more than e^{MARGIN:g}; " + _where(proposal, comp, names))
+        log(f"mode search: component {k} {how} ({mask.mean():.1%} of the {len(states)} kept "
+            f"flagged: the posterior outweighs the proposal by more than e^{MARGIN:g}); "
+            + _where(proposal, comp, names))
     return current
 
 
