@@ -147,8 +147,7 @@ def explore(target, pool: np.ndarray, nw: int, cfg, seed: int, k: int, inside,
     independence move, whose t is the main mode's), the first from `nw` distinct states of the
     pool, each later one from distinct states of the previous round's second half that are
     inside (walkers that left are dropped). Returns the rounds' second halves ((n, D), (n,))
-    and the steps run:
-    the walkers stay near where they start, as the stored run's chains did in dataset 2's
+    and the steps run. Why: the walkers stay near where they start, as the stored run's chains did in dataset 2's
     second mode, so their states cover the region where the pool (where the burn-in's walkers
     passed) covered a fifth of its width."""
     rng = np.random.default_rng([seed % (2**32), 1000 + k])
