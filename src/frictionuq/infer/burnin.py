@@ -99,9 +99,7 @@ def burn_in(target, state: np.ndarray, cfg, seed: int, rng, log=None,
     proposal, prev, steps = None, -np.inf, 0
     memory = []                  # (states, log-posteriors) kept of each round for the mode search
     for rnd in range(max(cfg.burn_rounds, cfg.burn_max_rounds)):
-        bs = emcee.EnsembleSampler(nw, ndim, target, vectorize=True, moves=moves_for(cfg, proposal))
-        bs.random_state = np.random.RandomState([seed % (2**32), rnd]).get_state()
-        run_steps(bs, state[:nw], cfg.burn_steps, progress=progress_bar(cfg), intr=intr)
+        bs = _round(target, state[:nw], cfg, proposal, [seed % (2**32), rnd], intr)
         lpc = bs.get_log_prob()
         if cfg.mode_search:
             memory.append(modes.keep(bs.get_chain(), lpc))
@@ -147,16 +145,14 @@ def explore(target, pool: np.ndarray, nw: int, cfg, seed: int, k: int, inside,
     independence move, whose t is the main mode's), the first from `nw` distinct states of the
     pool, each later one from distinct states of the previous round's second half that are
     inside (walkers that left are dropped). Returns the rounds' second halves ((n, D), (n,))
-    and the steps run. Why: the walkers stay near where they start, as the stored run's chains did in dataset 2's
-    second mode, so their states cover the region where the pool (where the burn-in's walkers
-    passed) covered a fifth of its width."""
+    and the steps run. Why: the walkers stay near where they start, as the stored run's chains
+    did in dataset 2's second mode, so their states cover the region where the pool (where the
+    burn-in's walkers passed) covered a fifth of its width."""
     rng = np.random.default_rng([seed % (2**32), 1000 + k])
     start = pool[rng.choice(len(pool), size=min(nw, len(pool)), replace=False)]
     n, ndim, xs, xl = cfg.burn_steps, pool.shape[1], [], []
     for rnd in range(modes.EXPLORE_ROUNDS):
-        es = emcee.EnsembleSampler(len(start), ndim, target, vectorize=True, moves=moves_for(cfg))
-        es.random_state = np.random.RandomState([seed % (2**32), 1000 + k, rnd]).get_state()
-        run_steps(es, start, n, progress=progress_bar(cfg), intr=intr)
+        es = _round(target, start, cfg, None, [seed % (2**32), 1000 + k, rnd], intr)
         xs.append(es.get_chain()[n // 2:].reshape(-1, ndim))
         xl.append(es.get_log_prob()[n // 2:].reshape(-1))
         there = np.unique(xs[-1][inside(xs[-1], xl[-1])], axis=0)
@@ -164,6 +160,16 @@ def explore(target, pool: np.ndarray, nw: int, cfg, seed: int, k: int, inside,
             break
         start = there[rng.choice(len(there), size=len(start), replace=False)]
     return np.concatenate(xs), np.concatenate(xl), n * len(xs)
+
+
+def _round(target, state, cfg, proposal, key, intr=None):
+    """One round of cfg.burn_steps steps from `state` with the moves of `proposal` (None: the
+    first round's), its random state seeded by `key`."""
+    nw, ndim = state.shape
+    bs = emcee.EnsembleSampler(nw, ndim, target, vectorize=True, moves=moves_for(cfg, proposal))
+    bs.random_state = np.random.RandomState(key).get_state()
+    run_steps(bs, state, cfg.burn_steps, progress=progress_bar(cfg), intr=intr)
+    return bs
 
 
 def run_steps(sampler, state, n: int, progress=False, intr: Interrupts | None = None):

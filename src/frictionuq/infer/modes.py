@@ -113,7 +113,7 @@ def find_modes(proposal: Proposal, states, log_prob, ref_states, ref_log_prob,
                     f"{max(MIN_STATES, 2 * d + 2)}): none added")
             break
         k = len(current.modes) + 1
-        comp, how = component(pool, proposal), f"fitted to {len(pool)} distinct burn-in states"
+        comp, how = None, f"fitted to {len(pool)} distinct burn-in states"
         if explore is not None:
             def inside(xs, xl, logq=current.move().logq):
                 return flagged(xs, xl, ref_states, ref_log_prob, logq)
@@ -126,6 +126,7 @@ def find_modes(proposal: Proposal, states, log_prob, ref_states, ref_log_prob,
             else:
                 how += (f" (the ensemble started there kept only {len(region)} distinct states "
                         f"in the region)")
+        comp = comp if comp is not None else component(pool, proposal)
         current = _with_modes(proposal, (*current.modes, comp), weight)
         log(f"mode search: component {k} {how} ({mask.mean():.1%} of the {len(states)} kept "
             f"flagged: the posterior outweighs the proposal by more than e^{MARGIN:g}); "
