@@ -2,6 +2,9 @@
 result file, so that two outputs that differ say whether they came from the same dependency
 versions on the same kind of CPU (numba compiles the kernel for the host CPU)."""
 import json
+import os
+import subprocess
+import sys
 from importlib import metadata
 
 import numpy as np
@@ -76,4 +79,31 @@ def test_the_reports_provenance_shows_it():
         return "".join(str(b) for b in S.build(ctx, "now"))
     shown = html({"package_version": "0.1.0", "environment": env})
     assert f"numpy {np.__version__}" in shown and f"compiles for {env['numba_cpu']}" in shown
+    assert f"BLAS {env['blas_threads']}" in shown
     assert "not recorded (run made before" in html({"package_version": "0.1.0"})
+
+
+_BLAS_SCRIPT = """
+import numpy, scipy.linalg   # both OpenBLAS copies loaded before frictionuq, as a user's script may
+from threadpoolctl import threadpool_info
+before = max(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas")
+import frictionuq.environment as E
+print(before, E.environment()["blas_threads"])
+"""
+
+
+@pytest.mark.skipif((os.cpu_count() or 1) < 2, reason="OpenBLAS runs one thread on one core anyway")
+def test_numpy_imported_first_still_gets_one_blas_thread():
+    """A script that imports numpy (and scipy) before frictionuq: OpenBLAS had already started one
+    thread per core, and with two threads the MAP search's SVDs differed in their last bits from
+    run to run, so one seed gave two chains (docs/log-calibration.md, stop 81). frictionuq holds
+    every loaded BLAS to one thread; a user's own OPENBLAS_NUM_THREADS wins."""
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+
+    def run(**extra):
+        out = subprocess.run([sys.executable, "-c", _BLAS_SCRIPT], env={**env, **extra}, check=True,
+                             capture_output=True, text=True).stdout.split()
+        return int(out[-2]), int(out[-1])
+    before, after = run()
+    assert before >= 2 and after == 1           # numpy had started several; frictionuq made it one
+    assert run(OPENBLAS_NUM_THREADS="2") == (2, 2)

@@ -75,11 +75,24 @@ def _static() -> dict:
 
 
 def environment() -> dict:
-    """{"python", "platform", "cpu", "numba_cpu", "cores", "numba_threads", "packages": {name:
-    version or None}} of this process (JSON-ready; a fresh dict each call)."""
+    """{"python", "platform", "cpu", "numba_cpu", "cores", "numba_threads", "blas_threads",
+    "packages": {name: version or None}} of this process (JSON-ready; a fresh dict each call)."""
     env = dict(_static(), packages=dict(_static()["packages"]))
     env["numba_threads"] = _numba_threads()
+    env["blas_threads"] = _blas_threads()
     return env
+
+
+def _blas_threads() -> int | None:
+    """The most threads any loaded BLAS may use (frictionuq holds them to one unless the user
+    set OPENBLAS_NUM_THREADS: with more, the MAP search's SVDs are not reproducible bit for
+    bit); None when no BLAS is loaded yet."""
+    try:
+        from threadpoolctl import threadpool_info
+        n = [int(i["num_threads"]) for i in threadpool_info() if i.get("user_api") == "blas"]
+        return max(n) if n else None
+    except Exception:       # noqa: BLE001 - provenance must never stop a run
+        return None
 
 
 def _numba_threads() -> int | None:

@@ -105,7 +105,9 @@ def build(ctx, generated: str) -> list[dict]:
         info += [("Python", env.get("python", "not recorded")),
                  ("packages", ", ".join(f"{k} {v}" for k, v in pk.items() if v) or "not recorded"),
                  ("machine", f"{env.get('cpu') or '?'} ({env.get('cores') or '?'} cores), numba "
-                             f"compiles for {env.get('numba_cpu') or '?'}, {env.get('platform') or '?'}")]
+                             f"compiles for {env.get('numba_cpu') or '?'}, {env.get('platform') or '?'}"),
+                 ("threads", f"numba {env.get('numba_threads') or '?'}, "
+                             f"BLAS {env.get('blas_threads') or 'not recorded'}")]
     else:
         info.append(("software and machine", "not recorded (run made before frictionuq recorded them)"))
     out = [B.html(kv_table(info, caption="run"))]
