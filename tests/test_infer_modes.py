@@ -2,7 +2,8 @@
 (proposal.MixtureMove): the mixture's exact density and Hastings factor, its draws, the
 attributes' round trip, the search's flags on a missed mode and on a covered posterior, and a
 seeded statistical harness: on a two-mode target whose minor mode the proposal misses, the
-stored run's chains stick without the component and sample the target with it."""
+stored run's chains stick without the component and sample the target with it; the component's
+refinement by importance sampling."""
 from __future__ import annotations
 
 from dataclasses import replace
@@ -181,13 +182,14 @@ def test_the_burn_in_finds_a_narrow_mode_it_started_in():
     """Through the burn-in itself: a 3-D target with a narrow minor mode (5 %, sd 0.15, at
     x0 = 2.5) that holds the highest density, as dataset 2's MAP lies in d3's minor mode, and
     walkers started there. The walkers leave for the major mode, the search flags the states of
-    the first rounds and fits one component on the minor mode (centre within 0.1: measured
-    2.51; widths half the main t's, about 0.5), the main t on the major one. The ensemble that
-    explores the region leaves this mode too (it is narrow and next to the major one), so the
-    component falls back to the flagged states, widened, and says so; the exploration's steps
-    count as burn-in steps. Fixed seeds:
-    deterministic (this target's burn-in at seed 2 covers the minor mode with its main t and
-    adds no component: not every start needs one)."""
+    the first rounds and fits one component on the minor mode, refined by importance sampling
+    (modes.refine): centre within 0.1 of the mode's (measured 2.48), widths within 0.05 of its
+    sd 0.15 (measured 0.17-0.18: the tempered weights widen it), the main t on the major one.
+    The refinement's evaluations are not steps: the steps are the burn-in rounds'. With soft
+    responsibilities (EM's own) the component, whose weight 0.1 is twice this mode's mass, was
+    pulled onto the major mode (centre 0.8, widths about 1) and the search added three such
+    components. Fixed seeds: deterministic (this target's burn-in at seed 3 covers the minor
+    mode with its main t and adds no component: not every start needs one)."""
     from frictionuq.infer.burnin import burn_in
     m, s, w2 = np.r_[2.5, 0.0, 0.0], 0.15, 0.05
 
@@ -201,11 +203,11 @@ def test_the_burn_in_finds_a_narrow_mode_it_started_in():
     cfg = SamplerConfig(nwalkers=32, burn_steps=100, progress=False, mode_search=True)
     _, p, steps = burn_in(target, state, cfg, seed=1, rng=rng, log=msgs.append)
     assert len(p.modes) == 1 and "component 1 fitted to" in msgs[-1], msgs
-    assert "the ensemble started there kept only" in msgs[-1], msgs[-1]
+    assert "refined by 5 rounds of 1000 draws" in msgs[-1], msgs[-1]
     rounds = sum(m.startswith("burn-in round") for m in msgs)
-    assert steps == (rounds + 1) * 100, (steps, rounds)      # one exploring round of 100 steps
+    assert steps == rounds * 100, (steps, rounds)
     assert np.all(np.abs(p.modes[0].x_centre - m) < 0.1), p.modes[0].x_centre
-    assert np.all(np.abs(p.modes[0].x_width - 0.5) < 0.1), p.modes[0].x_width
+    assert np.all(np.abs(p.modes[0].x_width - s) < 0.05), p.modes[0].x_width
     assert np.all(np.abs(p.x_centre) < 0.2) and np.all(np.abs(p.x_width - 1) < 0.2), p.x_width
 
 
@@ -222,15 +224,14 @@ def test_a_stored_run_keeps_its_mode_components_for_a_resume(tmp_path):
     assert np.array_equal(p.move().logq(x), q.move().logq(x))
 
 
-def test_an_ensemble_started_at_the_flagged_states_draws_the_modes_real_width():
+def test_the_refined_component_has_the_modes_real_width():
     """The flagged states mark where the walkers passed, not the mode's shape (dataset 2: d3's
     width among them a fifth of the mode's). On a minor mode of sd 0.2 (5 %, 8 sds of the major
-    one away) flagged only in a passage of sd 0.04: without exploring, the component gets the
-    widened widths (half the main t's, 0.5); with burnin.explore (an ensemble of 32 walkers
-    started at the flagged states, two rounds of 100 steps), it is fitted to draws of the mode
-    itself: centre within 0.1 and every width within 0.05 of 0.2 (x_width: half the 15.9-84.1 %
-    range). Fixed seeds: deterministic."""
-    from frictionuq.infer.burnin import explore
+    one away) flagged only in a passage of sd 0.04: without refinement, the component gets the
+    widened widths (half the main t's, 0.5); refined (modes.refine, five rounds of 1,000 draws
+    weighed by the posterior over the mixture), centre within 0.1 and every width within 0.05
+    of 0.2 (x_width: half the 15.9-84.1 % range; measured 0.19-0.21 at refinement seeds 1-3).
+    Fixed seeds: deterministic."""
     m = np.array([8.0, 2.0, 0.0])
 
     def target(x):
@@ -242,12 +243,30 @@ def test_an_ensemble_started_at_the_flagged_states_draws_the_modes_real_width():
     ref = rng.standard_normal((4000, 3))
     main = Proposal.fit(ref)
     kept = np.vstack([rng.standard_normal((2000, 3)), m + 0.04 * rng.standard_normal((300, 3))])
-    cfg = SamplerConfig(nwalkers=32, burn_steps=100, progress=False, mode_search=True)
     msgs = []
     plain = find_modes(main, kept, target(kept), ref, target(ref), 0.1)
     p = find_modes(main, kept, target(kept), ref, target(ref), 0.1, log=msgs.append,
-                   explore=lambda pool, k, inside: explore(target, pool, 32, cfg, 3, k, inside)[:2])
+                   density=target, seed=3)
     assert np.all(np.abs(plain.modes[0].x_width - 0.5) < 0.05), plain.modes[0].x_width
-    assert len(p.modes) == 1 and "drawn by an ensemble" in msgs[0], msgs
+    assert len(p.modes) == 1 and "refined by 5 rounds" in msgs[0], msgs
     assert np.all(np.abs(p.modes[0].x_centre - m) < 0.1), p.modes[0].x_centre
     assert np.all(np.abs(p.modes[0].x_width - 0.2) < 0.05), p.modes[0].x_width
+
+
+def test_tempered_weights_keep_the_asked_effective_sample_size():
+    """modes.tempered_weights: untempered (alpha 1) when the raw weights' effective sample size
+    is already enough; else the largest alpha that keeps it at the asked fraction (to the
+    bisection's precision), which a larger alpha breaks."""
+    from frictionuq.infer.modes import tempered_weights
+
+    def ess(w):
+        return 1.0 / np.sum(w ** 2)
+    flat = np.random.default_rng(2).normal(0, 0.1, 1000)
+    w, a = tempered_weights(flat, 0.25)
+    assert a == 1.0 and w.sum() == pytest.approx(1.0) and ess(w) > 900
+    steep = np.random.default_rng(2).normal(0, 20.0, 1000)       # degenerate raw weights
+    w, a = tempered_weights(steep, 0.25)
+    assert 0.0 < a < 1.0 and ess(w) >= 250 and ess(w) < 260
+    lw = steep - steep.max()
+    w2 = np.exp((a + 0.01) * lw)
+    assert ess(w2 / w2.sum()) < 250

@@ -54,7 +54,8 @@ def _add_selection(s, max_steps_help: str) -> None:
     s.add_argument("--mode-search", action="store_true", default=None,
                    help="give the stored run's independence proposal components on regions the "
                         "burn-in visited and the proposal misses (a second mode a chain would "
-                        "stick in); each region found costs two burn-in rounds that explore it")
+                        "stick in); each region found costs 5,000 posterior evaluations that "
+                        "shape its component")
 
 
 def _add_prior(s, whose: str) -> None:

@@ -26,7 +26,8 @@
   than 2 x ndim walkers; the burn-in has max(32, 2 ndim + 4).
 * Mode search (cfg.mode_search, opt-in; infer.modes): every fifth step of every round is kept,
   and after the last round the states where the posterior outweighs the last proposal by more
-  than e^3 beyond the round's own top per cent get proposal components of their own.
+  than e^3 beyond the round's own top per cent get proposal components of their own, each
+  refined by importance sampling (modes.refine).
 * The stored run's moves (moves_for(..., stored=True)): with stored_run "chains" the
   independence move and a random walk per walker (proposal.RandomWalkMove), each walker a
   Markov chain of its own; with "ensemble" the independence move beside the DE moves above.
@@ -92,7 +93,7 @@ def burn_in(target, state: np.ndarray, cfg, seed: int, rng, log=None,
     Returns (positions, proposal.Proposal, steps run); `n_out` positions (default: as many as
     walkers), drawn like the next round's. With cfg.mode_search the proposal gets the
     components infer.modes finds among the rounds' states (`names`: the coordinates', for the
-    log), each after `explore` ran an ensemble in its region (its steps count as run)."""
+    log), each refined with draws of its own (modes.refine: posterior evaluations, no steps)."""
     log = log or (lambda msg: None)
     nw, ndim = state.shape
     n_draw = max(nw, n_out or nw)
@@ -122,44 +123,16 @@ def burn_in(target, state: np.ndarray, cfg, seed: int, rng, log=None,
         prev = level
         if rnd + 1 >= cfg.burn_rounds and settled:
             break
-    explored = [0]                 # steps the mode search's exploring ensembles ran (burn-in steps)
     if cfg.mode_search:
-        def _explore(pool, k, inside):
-            xs, xl, n = explore(target, pool, nw, cfg, seed, k, inside, intr)
-            explored[0] += n
-            return xs, xl
+        def density(x):             # the target's log-posterior column (its other ones: blobs)
+            out = np.asarray(target(x), float)
+            return out[:, 0] if out.ndim == 2 else out
         half = bs.get_chain()[cfg.burn_steps // 2:]
         proposal = modes.find_modes(proposal, np.concatenate([m[0] for m in memory]),
                                     np.concatenate([m[1] for m in memory]),
                                     half.reshape(-1, ndim), lpc[cfg.burn_steps // 2:].reshape(-1),
-                                    cfg.mode_weight, names, log,
-                                    explore=_explore)
-    return state, proposal, steps + explored[0]
-
-
-def explore(target, pool: np.ndarray, nw: int, cfg, seed: int, k: int, inside,
-            intr: Interrupts | None = None) -> tuple[np.ndarray, np.ndarray, int]:
-    """Draws of the region a mode search's flagged `pool` marks (infer.modes, component `k`;
-    `inside(states, log_prob)`: the mask of the states in it): modes.EXPLORE_ROUNDS rounds of
-    cfg.burn_steps steps of the first burn-in round's moves (differential evolution; not the
-    independence move, whose t is the main mode's), the first from `nw` distinct states of the
-    pool, each later one from distinct states of the previous round's second half that are
-    inside (walkers that left are dropped). Returns the rounds' second halves ((n, D), (n,))
-    and the steps run. Why: the walkers stay near where they start, as the stored run's chains
-    did in dataset 2's second mode, so their states cover the region where the pool (where the
-    burn-in's walkers passed) covered a fifth of its width."""
-    rng = np.random.default_rng([seed % (2**32), 1000 + k])
-    start = pool[rng.choice(len(pool), size=min(nw, len(pool)), replace=False)]
-    n, ndim, xs, xl = cfg.burn_steps, pool.shape[1], [], []
-    for rnd in range(modes.EXPLORE_ROUNDS):
-        es = _round(target, start, cfg, None, [seed % (2**32), 1000 + k, rnd], intr)
-        xs.append(es.get_chain()[n // 2:].reshape(-1, ndim))
-        xl.append(es.get_log_prob()[n // 2:].reshape(-1))
-        there = np.unique(xs[-1][inside(xs[-1], xl[-1])], axis=0)
-        if len(there) < len(start):      # too few left inside to start another round
-            break
-        start = there[rng.choice(len(there), size=len(start), replace=False)]
-    return np.concatenate(xs), np.concatenate(xl), n * len(xs)
+                                    cfg.mode_weight, names, log, density=density, seed=seed)
+    return state, proposal, steps
 
 
 def _round(target, state, cfg, proposal, key, intr=None):

@@ -15,33 +15,37 @@ proposal component on that mode (fitted to an earlier run's states) the fit conv
 How: every `MEMORY_STRIDE`-th step of every burn-in round is kept (the burn-in starts at the
 MAP, so its first rounds pass through regions the later ones leave). After the last round, the
 log importance weight lw = log p(x) - log q(x) under its proposal is computed for the kept states
-(the log-posteriors are the ones the burn-in computed; no new evaluation; the exploration below
-costs EXPLORE_ROUNDS burn-in rounds per component found). The reference is the
+(the log-posteriors are the ones the burn-in computed; no new evaluation; the refinement below
+costs REFINE_ROUNDS x REFINE_DRAWS evaluations per component found). The reference is the
 last round's second half, the states the proposal was fitted to. A kept state is flagged when
   * lw exceeds the reference's 99 % point by more than `MARGIN` nats (e^3: a proposal back from
     there is accepted at most about 5 % as often as from the bulk's top per cent), and
   * its log-posterior is no more than `max(10, 3 sqrt(D/2))` below the reference's median (the
     burn-in's own threshold for a stuck walker: a transient state of a walker still climbing
     from its start is not a region of the posterior).
-With at least `MIN_STATES` distinct flagged states (and 2 D + 2), a t is fitted to them, after
-exploring their region (Shape, below), and added as a component; the flagged states are then
+With at least `MIN_STATES` distinct flagged states (and 2 D + 2), a t is fitted to them and
+refined (Shape, below), and added as a component; the flagged states are then
 weighed again under the mixture, and a further component is fitted to those still flagged, up
 to `MAX_MODES`. The components share the weight `mode_weight` (SamplerConfig; 0.1, the weight
 that made the dataset-2 fit converge).
 
 Shape: the flagged states are where the walkers passed, not draws of the region they mark (on
 dataset 2, the start ball around the MAP, whose d3 width was a fifth of the second mode's:
-compared with a t fitted to another run's states there). So the region is explored first
-(burnin.explore): an ensemble started at distinct flagged states runs EXPLORE_ROUNDS rounds of
-the burn-in's length with the first round's moves (differential evolution only), each round
-after the first started at distinct states of the previous round's second half that are still
-flagged (walkers that left the region for the main mode are dropped, as the burn-in drops stuck
-walkers), and the component is `Proposal.fit` (the main t's construction) to the flagged states
-of the rounds' second halves. When fewer than MIN_STATES (and 2 D + 2) remain, the component
-falls back to the flagged states themselves (`component`: each coordinate's width raised to at
-least half the main t's, WIDEN, their correlations kept). A refit of the components on a
-further burn-in round run with the mixture was tried and not kept (docs/log-calibration.md,
-2026-12-06, night).
+compared with a t fitted to another run's states there). The component starts as the flagged
+states' own t (`component`: each coordinate's width raised to at least half the main t's,
+WIDEN, their correlations kept) and is then refined by adaptive importance sampling (`refine`):
+REFINE_ROUNDS rounds of REFINE_DRAWS draws from it, weighed by the posterior over the mixture
+it would join, tempered to an effective sample size of REFINE_ESS of the draws, and refitted to
+their weighted mean and covariance. On dataset 2 (measured offline on two seeds' burn-ins,
+docs/log-calibration.md, 2026-12-07, morning) the second mode's median log weight fell from
++3.0 and +2.3 (the widened start) to +1.0 and +0.4 after five rounds (an oracle component fitted
+to a tempered run's draws of the mode: -2.2), at 5,000 evaluations. Tried first and dropped: an
+ensemble started at the flagged states that explored the region for two burn-in rounds (16,000
+evaluations; its walkers left the region at one seed, and offline it scored +2.1 to +3.2, no
+better than the widened start), that ensemble confined to the flagged region (+2.6 and +3.1:
+the region where the main t is weakest is a slice of the mode), untempered importance weights
+(effective sample size 1-23 of 1,000; the component collapsed). A refit of the components on a
+further burn-in round run with the mixture was tried and not kept (2026-12-06, night).
 
 Exactness: the mixture is fixed before the stored run and its density is exact (MixtureMove), so
 the stored run's target is the posterior whatever the components are; a poor component only
@@ -59,7 +63,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .proposal import Proposal
+from .proposal import IndependenceMove, Proposal
 
 #: every this many steps of a burn-in round is kept for the search
 MEMORY_STRIDE = 5
@@ -71,8 +75,12 @@ MIN_STATES = 50
 MAX_MODES = 3
 #: a component's width in each coordinate at least this fraction of the main t's
 WIDEN = 0.5
-#: the exploring ensemble runs this many burn-in rounds' worth of steps (burnin.explore)
-EXPLORE_ROUNDS = 2
+#: rounds of the component's refinement (refine), draws from the component in each
+REFINE_ROUNDS = 5
+REFINE_DRAWS = 1000
+#: the weights of a refinement round are tempered until their effective sample size is at least
+#: this fraction of the draws
+REFINE_ESS = 0.25
 
 
 def keep(chain: np.ndarray, log_prob: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -92,13 +100,12 @@ def flagged(states, log_prob, ref_states, ref_log_prob, logq) -> np.ndarray:
 
 
 def find_modes(proposal: Proposal, states, log_prob, ref_states, ref_log_prob,
-               weight: float, names=None, log=None, explore=None) -> Proposal:
+               weight: float, names=None, log=None, density=None, seed=0) -> Proposal:
     """`proposal` with the components the search finds (module docstring), or unchanged.
     `states`, `log_prob`: the burn-in's kept states; `ref_*`: the last round's second half.
-    `explore(pool, k, inside)`: draws of the region the flagged `pool` marks ((n, D) states and
-    their log-posteriors; burnin.explore, an ensemble run started there; `inside(states,
-    log_prob)` the mask of the flagged ones), or None: the component is then fitted to the pool
-    itself (`component`)."""
+    `density(states)`: the log-posterior of a batch ((n, D) -> (n,)), with which each component
+    is refined (`refine`, seeded by `seed` and its number); None: the component is the flagged
+    states' (`component`)."""
     log = log or (lambda msg: None)
     states, log_prob = np.asarray(states, float), np.asarray(log_prob, float)
     d = states.shape[1]
@@ -113,25 +120,72 @@ def find_modes(proposal: Proposal, states, log_prob, ref_states, ref_log_prob,
                     f"{max(MIN_STATES, 2 * d + 2)}): none added")
             break
         k = len(current.modes) + 1
-        comp, how = None, f"fitted to {len(pool)} distinct burn-in states"
-        if explore is not None:
-            def inside(xs, xl, logq=current.move().logq):
-                return flagged(xs, xl, ref_states, ref_log_prob, logq)
-            xs, xl = explore(pool, k, inside)
-            region = np.unique(xs[inside(xs, xl)], axis=0)
-            if len(region) >= max(MIN_STATES, 2 * d + 2):
-                comp = Proposal.fit(region)
-                how = (f"fitted to {len(region)} distinct states of {len(xs)} drawn by an "
-                       f"ensemble started at {len(pool)} flagged burn-in states")
-            else:
-                how += (f" (the ensemble started there kept only {len(region)} distinct states "
-                        f"in the region)")
-        comp = comp if comp is not None else component(pool, proposal)
+        comp, how = component(pool, proposal), f"fitted to {len(pool)} distinct burn-in states"
+        if density is not None:
+            comp, alphas = refine(comp, _with_modes(proposal, current.modes, weight), density,
+                                  np.random.default_rng([seed % (2**32), 1000 + k]))
+            how += (f", refined by {len(alphas)} rounds of {REFINE_DRAWS} draws weighted by "
+                    f"posterior over mixture (weights tempered by "
+                    + "/".join(f"{a:.2f}" for a in alphas) + ")")
         current = _with_modes(proposal, (*current.modes, comp), weight)
         log(f"mode search: component {k} {how} ({mask.mean():.1%} of the {len(states)} kept "
             f"flagged: the posterior outweighs the proposal by more than e^{MARGIN:g}); "
             + _where(proposal, comp, names))
     return current
+
+
+def refine(comp: Proposal, current: Proposal, density, rng) -> tuple[Proposal, list[float]]:
+    """`comp` refined by adaptive importance sampling (population Monte Carlo; Cappe et al.
+    2008): each of REFINE_ROUNDS rounds draws REFINE_DRAWS states from the component, weighs
+    them by p / q, q the mixture of `current` (the main t and the components found before) and
+    this component (its weight divided among them as in the stored run), and refits the
+    component (a t on the sampler's coordinates) to the weighted mean and covariance. Drawn from
+    the component alone, p / q_mix is the component's responsibility for p over its own density
+    (r = w_c c / q_mix, so p r / c = w_c p / q_mix): the update is EM's for this component of
+    the mixture. In 14 dimensions the raw weights are degenerate (effective sample size 1-23 of
+    1,000 on dataset 2), so they are tempered, w^alpha with the largest alpha in [0, 1] that
+    keeps their effective sample size at REFINE_ESS of the draws; tempering widens the
+    component, which a proposal can afford. Returns the component and each round's alpha.
+    A round with fewer than 2 D + 2 finite weights ends the refinement."""
+    d = comp.mean.size
+    alphas = []
+    for _ in range(REFINE_ROUNDS):
+        x = IndependenceMove(comp).draw(REFINE_DRAWS, rng)
+        mix = _with_modes(current, (*current.modes, comp), current.mode_weight).move()
+        lw = np.asarray(density(x), float) - mix.logq(x)
+        # the draws this component is the most likely source of (hard EM): with its weight fixed
+        # above the mode's mass, soft responsibilities pull it onto the main mode
+        terms = np.stack([w + m._logq(x) for w, m in zip(mix.log_w, mix.parts)])
+        ok = np.isfinite(lw) & (np.argmax(terms, axis=0) == len(mix.parts) - 1)
+        if ok.sum() < 2 * d + 2:
+            break
+        w, alpha = tempered_weights(lw[ok], REFINE_ESS)
+        xo = x[ok]
+        mean = w @ xo
+        cov = (xo - mean).T @ ((xo - mean) * w[:, None])
+        comp = Proposal.gaussian(mean, cov, df=comp.df, scale=comp.scale)
+        alphas.append(alpha)
+    return comp, alphas
+
+
+def tempered_weights(lw: np.ndarray, frac: float) -> tuple[np.ndarray, float]:
+    """Normalised weights exp(alpha lw) with the largest alpha in [0, 1] whose effective sample
+    size (1 / sum w^2) is at least `frac` of len(lw) (bisection; alpha = 0 gives equal weights)."""
+    lw = lw - lw.max()
+
+    def weights(a):
+        w = np.exp(a * lw)
+        return w / w.sum()
+
+    def enough(a):
+        return 1.0 / np.sum(weights(a) ** 2) >= frac * lw.size
+    if enough(1.0):
+        return weights(1.0), 1.0
+    lo, hi = 0.0, 1.0
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if enough(mid) else (lo, mid)
+    return weights(lo), lo
 
 
 def component(pool: np.ndarray, main: Proposal) -> Proposal:

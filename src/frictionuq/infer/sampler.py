@@ -32,8 +32,8 @@ until the chain passes the convergence criteria.
     With `temperatures` L > 1 each chain has L - 1 tempered copies (infer.tempering; opt-in).
     With `mode_search` (opt-in) the independence move proposes from a mixture: the burn-in's t
     and components on regions the burn-in visited that the t misses (infer.modes), weight
-    `mode_weight` (0.1) in all; each component costs two burn-in rounds of an ensemble that
-    explores its region (infer.modes).
+    `mode_weight` (0.1) in all; each component costs 5,000 posterior evaluations that refine
+    it by importance sampling (infer.modes).
   - "ensemble": the burn-in's walkers with the independence move (the same weight) and the DE
     moves for the rest (70/10/20 as above).
   Measured (docs/log-calibration.md): BRFD twin 267 N, one shared burn-in, 16 chains met R-hat
