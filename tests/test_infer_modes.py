@@ -270,3 +270,29 @@ def test_tempered_weights_keep_the_asked_effective_sample_size():
     lw = steep - steep.max()
     w2 = np.exp((a + 0.01) * lw)
     assert ess(w2 / w2.sum()) < 250
+
+
+def test_a_ctrl_c_stops_the_refinement_between_two_rounds():
+    """The refinement evaluates the posterior outside the sampler's steps, where a Ctrl-C is
+    noted (frictionuq.interrupts); the next refinement round raises it, rather than the fit
+    finishing its search first. Here the note comes during the first round's draws: the second
+    round never evaluates."""
+    from frictionuq.infer.burnin import burn_in
+    from frictionuq.interrupts import Interrupts
+    m, s, w2 = np.r_[2.5, 0.0, 0.0], 0.15, 0.05
+    intr, rounds = Interrupts(), []
+    intr.defer = True
+
+    def target(x):
+        if len(x) == 1000:              # a refinement round's batch (the burn-in's are 16)
+            rounds.append(1)
+            intr.handler(2, None)      # a SIGINT while the sampler defers it
+        return np.logaddexp(np.log(1 - w2) + multivariate_normal(np.zeros(3)).logpdf(x),
+                            np.log(w2) + multivariate_normal(m, s * s * np.eye(3)).logpdf(x))[:, None]
+
+    rng = np.random.default_rng(1)
+    state = m + 0.05 * rng.standard_normal((32, 3))
+    cfg = SamplerConfig(nwalkers=32, burn_steps=100, progress=False, mode_search=True)
+    with pytest.raises(KeyboardInterrupt):
+        burn_in(target, state, cfg, seed=1, rng=rng, intr=intr)
+    assert rounds == [1]

@@ -125,6 +125,8 @@ def burn_in(target, state: np.ndarray, cfg, seed: int, rng, log=None,
             break
     if cfg.mode_search:
         def density(x):             # the target's log-posterior column (its other ones: blobs)
+            if intr is not None:    # a Ctrl-C stops the refinement between two of its rounds
+                intr.check()
             out = np.asarray(target(x), float)
             return out[:, 0] if out.ndim == 2 else out
         half = bs.get_chain()[cfg.burn_steps // 2:]
