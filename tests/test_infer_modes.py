@@ -251,6 +251,10 @@ def test_the_refined_component_has_the_modes_real_width():
     assert len(p.modes) == 1 and "refined by 5 rounds" in msgs[0], msgs
     assert np.all(np.abs(p.modes[0].x_centre - m) < 0.1), p.modes[0].x_centre
     assert np.all(np.abs(p.modes[0].x_width - 0.2) < 0.05), p.modes[0].x_width
+    # no finite posterior among the component's draws: it stays the flagged states', and says so
+    q = find_modes(main, kept, target(kept), ref, target(ref), 0.1, log=msgs.append,
+                   density=lambda x: np.full(len(x), -np.inf), seed=3)
+    assert np.array_equal(q.modes[0].x_width, plain.modes[0].x_width) and "unrefined" in msgs[-1]
 
 
 def test_tempered_weights_keep_the_asked_effective_sample_size():

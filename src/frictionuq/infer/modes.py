@@ -126,7 +126,9 @@ def find_modes(proposal: Proposal, states, log_prob, ref_states, ref_log_prob,
                                   np.random.default_rng([seed % (2**32), 1000 + k]))
             how += (f", refined by {len(alphas)} rounds of {REFINE_DRAWS} draws weighted by "
                     f"posterior over mixture (weights tempered by "
-                    + "/".join(f"{a:.2f}" for a in alphas) + ")")
+                    + "/".join(f"{a:.2f}" for a in alphas) + ")" if alphas else
+                    f", unrefined (fewer than {2 * d + 2} of {REFINE_DRAWS} draws from it were "
+                    f"its own with a finite posterior)")
         current = _with_modes(proposal, (*current.modes, comp), weight)
         log(f"mode search: component {k} {how} ({mask.mean():.1%} of the {len(states)} kept "
             f"flagged: the posterior outweighs the proposal by more than e^{MARGIN:g}); "
@@ -139,10 +141,11 @@ def refine(comp: Proposal, current: Proposal, density, rng) -> tuple[Proposal, l
     2008): each of REFINE_ROUNDS rounds draws REFINE_DRAWS states from the component, weighs
     them by p / q, q the mixture of `current` (the main t and the components found before) and
     this component (its weight divided among them as in the stored run), and refits the
-    component (a t on the sampler's coordinates) to the weighted mean and covariance. Drawn from
-    the component alone, p / q_mix is the component's responsibility for p over its own density
-    (r = w_c c / q_mix, so p r / c = w_c p / q_mix): the update is EM's for this component of
-    the mixture. In 14 dimensions the raw weights are degenerate (effective sample size 1-23 of
+    component (a t on the sampler's coordinates) to the weighted mean and covariance of the
+    draws it is the most likely source of. Drawn from the component alone, p / q_mix is its
+    responsibility for p over its own density (r = w_c c / q_mix, so p r / c = w_c p / q_mix):
+    the update is EM's for this component of the mixture, with hard assignments (soft ones pull
+    a component whose weight exceeds its mode's mass onto the main mode; tested). In 14 dimensions the raw weights are degenerate (effective sample size 1-23 of
     1,000 on dataset 2), so they are tempered, w^alpha with the largest alpha in [0, 1] that
     keeps their effective sample size at REFINE_ESS of the draws; tempering widens the
     component, which a proposal can afford. Returns the component and each round's alpha.
