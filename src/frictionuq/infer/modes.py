@@ -38,13 +38,14 @@ REFINE_ROUNDS rounds of REFINE_DRAWS draws from it, weighed by the posterior ove
 it would join, tempered to an effective sample size of REFINE_ESS of the draws, and refitted to
 their weighted mean and covariance. On dataset 2 (measured offline on two seeds' burn-ins,
 docs/log-calibration.md, 2026-12-07, morning) the second mode's median log weight fell from
-+3.0 and +2.3 (the widened start) to +1.0 and +0.4 after five rounds (an oracle component fitted
-to a tempered run's draws of the mode: -2.2), at 5,000 evaluations. Tried first and dropped: an
-ensemble started at the flagged states that explored the region for two burn-in rounds (16,000
-evaluations; its walkers left the region at one seed, and offline it scored +2.1 to +3.2, no
-better than the widened start), that ensemble confined to the flagged region (+2.6 and +3.1:
-the region where the main t is weakest is a slice of the mode), untempered importance weights
-(effective sample size 1-23 of 1,000; the component collapsed). A refit of the components on a
++3.0 and +2.3 (the widened start) to +1.6 and +0.2 (two components each; on the CLI's own
+burn-ins +0.6 and +0.3; an oracle component fitted to a tempered run's draws of the mode: -2.2),
+at 5,000 evaluations a component. The fits reached R-hat 1.005 and 1.019 at 6,000 steps.
+Tried first and dropped: an ensemble started at the flagged states that explored the region for
+two burn-in rounds (16,000 evaluations; its walkers left the region at one seed, and offline it
+scored +2.1 to +3.2, no better than the widened start), that ensemble confined to the flagged
+region (+2.6 and +3.1: the region where the main t is weakest is a slice of the mode),
+untempered importance weights (effective sample size 1-23 of 1,000; the component collapsed). A refit of the components on a
 further burn-in round run with the mixture was tried and not kept (2026-12-06, night).
 
 Exactness: the mixture is fixed before the stored run and its density is exact (MixtureMove), so
