@@ -45,8 +45,9 @@ Tried first and dropped: an ensemble started at the flagged states that explored
 two burn-in rounds (16,000 evaluations; its walkers left the region at one seed, and offline it
 scored +2.1 to +3.2, no better than the widened start), that ensemble confined to the flagged
 region (+2.6 and +3.1: the region where the main t is weakest is a slice of the mode),
-untempered importance weights (effective sample size 1-23 of 1,000; the component collapsed). A refit of the components on a
-further burn-in round run with the mixture was tried and not kept (2026-12-06, night).
+untempered importance weights (effective sample size 1-23 of 1,000; the component collapsed).
+A refit of the components on a further burn-in round run with the mixture was tried and not
+kept (2026-12-06, night).
 
 Exactness: the mixture is fixed before the stored run and its density is exact (MixtureMove), so
 the stored run's target is the posterior whatever the components are; a poor component only
@@ -146,8 +147,9 @@ def refine(comp: Proposal, current: Proposal, density, rng) -> tuple[Proposal, l
     draws it is the most likely source of. Drawn from the component alone, p / q_mix is its
     responsibility for p over its own density (r = w_c c / q_mix, so p r / c = w_c p / q_mix):
     the update is EM's for this component of the mixture, with hard assignments (soft ones pull
-    a component whose weight exceeds its mode's mass onto the main mode; tested). In 14 dimensions the raw weights are degenerate (effective sample size 1-23 of
-    1,000 on dataset 2), so they are tempered, w^alpha with the largest alpha in [0, 1] that
+    a component whose weight exceeds its mode's mass onto the main mode; tested). In 14
+    dimensions the raw weights are degenerate (effective sample size 1-23 of 1,000 on dataset
+    2), so they are tempered, w^alpha with the largest alpha in [0, 1] that
     keeps their effective sample size at REFINE_ESS of the draws; tempering widens the
     component, which a proposal can afford. Returns the component and each round's alpha.
     A round with fewer than 2 D + 2 finite weights ends the refinement."""
@@ -156,10 +158,11 @@ def refine(comp: Proposal, current: Proposal, density, rng) -> tuple[Proposal, l
     for _ in range(REFINE_ROUNDS):
         x = IndependenceMove(comp).draw(REFINE_DRAWS, rng)
         mix = _with_modes(current, (*current.modes, comp), current.mode_weight).move()
-        lw = np.asarray(density(x), float) - mix.logq(x)
+        # each part's weighted log density: their log-sum-exp is the mixture's (MixtureMove.logq)
+        terms = np.stack([w + m._logq(x) for w, m in zip(mix.log_w, mix.parts)])
+        lw = np.asarray(density(x), float) - np.logaddexp.reduce(terms, axis=0)
         # the draws this component is the most likely source of (hard EM): with its weight fixed
         # above the mode's mass, soft responsibilities pull it onto the main mode
-        terms = np.stack([w + m._logq(x) for w, m in zip(mix.log_w, mix.parts)])
         ok = np.isfinite(lw) & (np.argmax(terms, axis=0) == len(mix.parts) - 1)
         if ok.sum() < 2 * d + 2:
             break
