@@ -87,8 +87,8 @@ _BLAS_SCRIPT = """
 import numpy, scipy.linalg   # both OpenBLAS copies loaded before frictionuq, as a user's script may
 from threadpoolctl import threadpool_info, threadpool_limits
 # OpenBLAS starts one thread per core it may use: two on a free 2-core machine, but one where the
-# process is pinned to one core or OMP_NUM_THREADS=1 (the CI run of stop 82). Two, as on a free
-# machine, whatever this one is:
+# process is pinned to one core or OMP_NUM_THREADS=1 (the project's CI host, 2026-12-07). Two,
+# as on a free machine, whatever this one is:
 threadpool_limits(limits=2, user_api="blas")
 before = max(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas")
 import frictionuq.environment as E
