@@ -158,8 +158,7 @@ def refine(comp: Proposal, current: Proposal, density, rng) -> tuple[Proposal, l
     for _ in range(REFINE_ROUNDS):
         x = IndependenceMove(comp).draw(REFINE_DRAWS, rng)
         mix = _with_modes(current, (*current.modes, comp), current.mode_weight).move()
-        # each part's weighted log density: their log-sum-exp is the mixture's (MixtureMove.logq)
-        terms = np.stack([w + m._logq(x) for w, m in zip(mix.log_w, mix.parts)])
+        terms = mix.terms(x)        # each part's; their log-sum-exp is mix.logq(x)
         lw = np.asarray(density(x), float) - np.logaddexp.reduce(terms, axis=0)
         # the draws this component is the most likely source of (hard EM): with its weight fixed
         # above the mode's mass, soft responsibilities pull it onto the main mode

@@ -263,10 +263,14 @@ class MixtureMove(emcee.moves.MHMove):
         self.log_w = np.log(w) + np.array([m.log_norm() for m in self.parts])
         super().__init__(self._propose, ndim=proposal.mean.size)
 
+    def terms(self, x) -> np.ndarray:
+        """Each part's weighted, normalised log density at x ((parts, n)): their log-sum-exp is
+        log q(x); their argmax, the part x most likely came from (modes.refine)."""
+        return np.stack([lw + m._logq(x) for lw, m in zip(self.log_w, self.parts)])
+
     def logq(self, x) -> np.ndarray:
         """log q(x) of the mixture (normalised)."""
-        terms = np.stack([lw + m._logq(x) for lw, m in zip(self.log_w, self.parts)])
-        return np.logaddexp.reduce(terms, axis=0)
+        return np.logaddexp.reduce(self.terms(x), axis=0)
 
     def _propose(self, x0, random):
         pick = np.searchsorted(self.cum, random.random_sample(x0.shape[0]), side="right")
