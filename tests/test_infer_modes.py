@@ -178,18 +178,22 @@ def test_a_component_keeps_the_flagged_states_centre_and_correlations_and_widens
     assert np.allclose(c.cov / np.outer(sd, sd), np.corrcoef(pool.T))
 
 
-def test_the_burn_in_finds_a_narrow_mode_it_started_in():
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_the_burn_in_finds_a_narrow_mode_it_started_in(seed):
     """Through the burn-in itself: a 3-D target with a narrow minor mode (5 %, sd 0.15, at
     x0 = 2.5) that holds the highest density, as dataset 2's MAP lies in d3's minor mode, and
     walkers started there. The walkers leave for the major mode, the search flags the states of
     the first rounds and fits one component on the minor mode, refined by importance sampling
-    (modes.refine): centre within 0.1 of the mode's (measured 2.48), widths within 0.05 of its
-    sd 0.15 (measured 0.17-0.18: the tempered weights widen it), the main t on the major one.
-    The refinement's evaluations are not steps: the steps are the burn-in rounds'. With soft
-    responsibilities (EM's own) the component, whose weight 0.1 is twice this mode's mass, was
-    pulled onto the major mode (centre 0.8, widths about 1) and the search added three such
-    components. Fixed seeds: deterministic (this target's burn-in at seed 3 covers the minor
-    mode with its main t and adds no component: not every start needs one)."""
+    (modes.refine): centre within 0.1 of the mode's, widths within 0.02 of its sd 0.15
+    (measured at seeds 1-10 and at distances 2.5, 3 and 3.5: 0.141-0.157; before the rounds drew
+    with the estimate's own spread, 0.166-0.182), the main t on the major one. The refinement's
+    evaluations are not steps: the steps are the burn-in rounds'. With soft responsibilities
+    (EM's own) the component, whose weight 0.1 is twice this mode's mass, was pulled onto the
+    major mode (centre 0.8, widths about 1) and the search added three such components. Every
+    seed finds it: the last round's walkers still over-sample the mode (10-14 % of the
+    reference at seeds 1 and 2), and with the reference's raw 99 % point the search found it at
+    3 of 10 seeds on one host (seed 1 among them on another: the burn-in's rounding). Fixed
+    seeds: deterministic on a host."""
     from frictionuq.infer.burnin import burn_in
     m, s, w2 = np.r_[2.5, 0.0, 0.0], 0.15, 0.05
 
@@ -197,18 +201,77 @@ def test_the_burn_in_finds_a_narrow_mode_it_started_in():
         return np.logaddexp(np.log(1 - w2) + multivariate_normal(np.zeros(3)).logpdf(x),
                             np.log(w2) + multivariate_normal(m, s * s * np.eye(3)).logpdf(x))[:, None]
 
-    rng = np.random.default_rng(1)
+    rng = np.random.default_rng(seed)
     state = m + 0.05 * rng.standard_normal((32, 3))
     msgs = []
     cfg = SamplerConfig(nwalkers=32, burn_steps=100, progress=False, mode_search=True)
-    _, p, steps = burn_in(target, state, cfg, seed=1, rng=rng, log=msgs.append)
+    _, p, steps = burn_in(target, state, cfg, seed=seed, rng=rng, log=msgs.append)
     assert len(p.modes) == 1 and "component 1 fitted to" in msgs[-1], msgs
     assert "refined by 5 rounds of 1000 draws" in msgs[-1], msgs[-1]
     rounds = sum(m.startswith("burn-in round") for m in msgs)
     assert steps == rounds * 100, (steps, rounds)
     assert np.all(np.abs(p.modes[0].x_centre - m) < 0.1), p.modes[0].x_centre
-    assert np.all(np.abs(p.modes[0].x_width - s) < 0.05), p.modes[0].x_width
-    assert np.all(np.abs(p.x_centre) < 0.2) and np.all(np.abs(p.x_width - 1) < 0.2), p.x_width
+    assert np.all(np.abs(p.modes[0].x_width - s) < 0.02), p.modes[0].x_width
+    assert np.all(np.abs(p.x_centre) < 0.35) and np.all(np.abs(p.x_width - 1) < 0.35), p.x_width
+
+
+def test_a_minor_mode_in_the_reference_is_still_flagged():
+    """The reference (the last burn-in round's second half) holds 10 % of its states in a 5 %
+    mode (the 3-D target above: sd 0.15 at x0 = 2.5) that the walkers over-sample, and the
+    proposal is fitted to it. Weighed against the reference's robust 99 % point (modes.top)
+    the search flags a third of the mode's draws (measured 0.34; a component needs 50 distinct
+    states) and at most a few of the major mode's 2,000; against its raw 99 % point, which lies
+    inside the mode's own weights, none of the mode's. Deterministic."""
+    from frictionuq.infer.modes import MARGIN, MIN_STATES, top
+    m, s, w2 = np.r_[2.5, 0.0, 0.0], 0.15, 0.05
+
+    def target(x):
+        return np.logaddexp(np.log(1 - w2) + multivariate_normal(np.zeros(3)).logpdf(x),
+                            np.log(w2) + multivariate_normal(m, s * s * np.eye(3)).logpdf(x))
+
+    rng = np.random.default_rng(2)
+    ref = np.vstack([rng.standard_normal((3600, 3)), m + s * rng.standard_normal((400, 3))])
+    logq = IndependenceMove(Proposal.fit(ref))._logq
+    minor = m + s * rng.standard_normal((500, 3))
+    major = rng.standard_normal((2000, 3))
+    flags = flagged(minor, target(minor), ref, target(ref), logq)
+    assert flags.sum() > 2 * MIN_STATES, flags.mean()
+    assert flagged(major, target(major), ref, target(ref), logq).sum() <= 5
+    ref_lw = target(ref) - logq(ref)
+    assert top(ref_lw) < np.percentile(ref_lw, 99) - 3.0
+    assert not np.any(target(minor) - logq(minor) > np.percentile(ref_lw, 99) + MARGIN)
+
+
+def test_the_refinement_converges_on_the_mode_in_14_dimensions():
+    """The dataset-2 fit has 14 coordinates. A 5 % mode of sd 0.2, 8 and 2 sds of the major
+    one away in two coordinates, flagged only in a passage of sd 0.04: the refinement's weights
+    are tempered to alpha 0.1-0.3 there, and refitting to them with the t's inflation (2.6
+    times the covariance) on top of each round's draws widened the component to a fixed point
+    far beyond the mode: three components, two pulled 2-4 widths towards the major mode (widths
+    about 1.1), the third at 0.40-0.48. Drawing each round with the estimate's own spread: one
+    component, centre within 0.1 and every width within 0.03 of 0.2 (measured at seeds 1-3:
+    centre within 0.04, widths 0.183-0.214). Fixed seeds: deterministic."""
+    d, s = 14, 0.2
+    m = np.zeros(d)
+    m[:2] = 8.0, 2.0
+
+    def target(x):
+        x = np.atleast_2d(x)
+        major = -0.5 * np.sum(x * x, axis=1)
+        minor = -0.5 * np.sum((x - m) ** 2, axis=1) / s ** 2 - d * np.log(s)
+        return np.logaddexp(np.log(0.95) + major, np.log(0.05) + minor) - 0.5 * d * np.log(2 * np.pi)
+
+    for seed in (1, 2):
+        rng = np.random.default_rng(10 + seed)
+        ref = rng.standard_normal((4000, d))
+        main = Proposal.fit(ref)
+        kept = np.vstack([rng.standard_normal((2000, d)), m + 0.04 * rng.standard_normal((300, d))])
+        msgs = []
+        p = find_modes(main, kept, target(kept), ref, target(ref), 0.1, log=msgs.append,
+                       density=target, seed=seed)
+        assert len(p.modes) == 1, msgs
+        assert np.all(np.abs(p.modes[0].x_centre - m) < 0.1), p.modes[0].x_centre
+        assert np.all(np.abs(p.modes[0].x_width - s) < 0.03), p.modes[0].x_width
 
 
 def test_a_stored_run_keeps_its_mode_components_for_a_resume(tmp_path):
