@@ -52,7 +52,7 @@ Until 2026-12-07 (stop 84) each round drew from the t refitted to the last one's
 moments with the t's own inflation (scale^2 df / (df - 2) = 2.6 times the covariance) on top,
 and under tempered weights that compounds: on a 14-D two-mode target (tests/test_infer_modes.py)
 the search made three components, two of them pulled 2-4 widths towards the main mode and 1.1
-times its width, the third on the mode at 2.4 times its sd; with the inflation divided out of
+times its width, the third on the mode at 2.0-2.4 times its sd; with the inflation divided out of
 the rounds' draws, one component on the mode, centre within 0.04, sd 0.18-0.21 against 0.2.
 Tried first and dropped: an ensemble started at the flagged states that explored the region for
 two burn-in rounds (16,000 evaluations; its walkers left the region at one seed, and offline it
