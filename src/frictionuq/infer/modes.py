@@ -110,7 +110,8 @@ def flagged(states, log_prob, ref_states, ref_log_prob, logq) -> np.ndarray:
     lw = log_prob - logq(states)
     d = states.shape[1]
     floor = np.median(ref_log_prob) - max(10.0, 3.0 * np.sqrt(d / 2.0))
-    return np.isfinite(lw) & (lw > top(ref_log_prob - logq(ref_states)) + MARGIN) & (log_prob >= floor)
+    above = lw > top(ref_log_prob - logq(ref_states)) + MARGIN
+    return np.isfinite(lw) & above & (log_prob >= floor)
 
 
 def top(lw: np.ndarray) -> float:
@@ -185,12 +186,13 @@ def refine(comp: Proposal, current: Proposal, density, rng) -> tuple[Proposal, l
     # its sd on the 14-D test target; dataset 2's d3: 0.6-0.8 of the main t's width against
     # the mode's 0.33). The returned component is the last estimate with the usual inflation,
     # as the main t is to its round's states.
-    infl = comp.scale ** 2 * comp.df / (comp.df - 2.0)
-    est = comp
-    comp = Proposal.gaussian(est.mean, est.cov / infl, df=est.df, scale=est.scale)
+    df, scale = comp.df, comp.scale
+    infl = scale ** 2 * df / (df - 2.0)
+    mean, cov = comp.mean, comp.cov
     for _ in range(REFINE_ROUNDS):
-        x = IndependenceMove(comp).draw(REFINE_DRAWS, rng)
-        mix = _with_modes(current, (*current.modes, comp), current.mode_weight).move()
+        draw = Proposal.gaussian(mean, cov / infl, df=df, scale=scale)
+        x = IndependenceMove(draw).draw(REFINE_DRAWS, rng)
+        mix = _with_modes(current, (*current.modes, draw), current.mode_weight).move()
         terms = mix.terms(x)        # each part's; their log-sum-exp is mix.logq(x)
         lw = np.asarray(density(x), float) - np.logaddexp.reduce(terms, axis=0)
         # the draws this component is the most likely source of (hard EM): with its weight fixed
@@ -202,10 +204,8 @@ def refine(comp: Proposal, current: Proposal, density, rng) -> tuple[Proposal, l
         xo = x[ok]
         mean = w @ xo
         cov = (xo - mean).T @ ((xo - mean) * w[:, None])
-        est = Proposal.gaussian(mean, cov, df=est.df, scale=est.scale)
-        comp = Proposal.gaussian(mean, cov / infl, df=est.df, scale=est.scale)
         alphas.append(alpha)
-    return est, alphas
+    return (Proposal.gaussian(mean, cov, df=df, scale=scale) if alphas else comp), alphas
 
 
 def tempered_weights(lw: np.ndarray, frac: float) -> tuple[np.ndarray, float]:
