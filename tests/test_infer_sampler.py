@@ -244,8 +244,9 @@ def _stop_step(monkeypatch, rule_met: list[bool], confirm_checks: int) -> tuple[
                         confirm_checks=confirm_checks, progress=False)
     sp = type("Sp", (), {"names": ["a", "b"]})()
     msgs = []
-    n, conv = S._run(s, np.random.default_rng(2).standard_normal((8, 2)), cfg, sp, 0, [],
-                     msgs.append)
+    n, conv, found = S._run(s, np.random.default_rng(2).standard_normal((8, 2)), cfg, sp, 0, [],
+                            msgs.append)
+    assert found is None                   # no MAP given: no check against it
     return n, conv, msgs
 
 
@@ -311,9 +312,9 @@ def test_the_replay_of_a_stored_chain_repeats_the_runs_own_checks():
                         tau_factor=5.0, tau_rtol=0.5, ess_min=50.0, r_hat_max=1.05,
                         progress=False)
     hist = []
-    n, conv = S._run(s, np.random.default_rng(4).standard_normal((16, 2)), cfg, Identity(), 0,
-                     hist, lambda m: None)
-    assert (n, conv) == (2400, False)
+    n, conv, found = S._run(s, np.random.default_rng(4).standard_normal((16, 2)), cfg, Identity(),
+                            0, hist, lambda m: None)
+    assert (n, conv, found) == (2400, False, None)
     rows = replay(s.get_chain(), cfg, Identity())
     assert [r["steps"] for r in rows] == [h["steps"] for h in hist] == [800, 1200, 1600, 2000, 2400]
     for r, h in zip(rows, hist):

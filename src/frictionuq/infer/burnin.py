@@ -27,7 +27,8 @@
 * Mode search (cfg.mode_search, opt-in; infer.modes): every fifth step of every round is kept,
   and after the last round the states where the posterior outweighs the last proposal by more
   than e^3 beyond the round's own top per cent get proposal components of their own, each
-  refined by importance sampling (modes.refine).
+  refined by importance sampling (modes.refine). After a restart (infer.restart) the search
+  runs whatever cfg.mode_search says, over the discarded run's states (`carry`) and the rounds'.
 * The stored run's moves (moves_for(..., stored=True)): with stored_run "chains" the
   independence move and a random walk per walker (proposal.RandomWalkMove), each walker a
   Markov chain of its own; with "ensemble" the independence move beside the DE moves above.
@@ -81,7 +82,7 @@ def moves_for(cfg, proposal=None, stored: bool = False):
 
 
 def burn_in(target, state: np.ndarray, cfg, seed: int, rng, log=None,
-            n_out: int | None = None, intr: Interrupts | None = None, names=None):
+            n_out: int | None = None, intr: Interrupts | None = None, names=None, carry=None):
     """The burn-in phase (module docstring) from walker positions `state` (walkers, ndim) of
     the vectorized emcee target. Rounds of cfg.burn_steps steps, at least cfg.burn_rounds, more
     (up to cfg.burn_max_rounds) while the walkers still climb, some are stuck, or the proposal
@@ -93,16 +94,20 @@ def burn_in(target, state: np.ndarray, cfg, seed: int, rng, log=None,
     Returns (positions, proposal.Proposal, steps run); `n_out` positions (default: as many as
     walkers), drawn like the next round's. With cfg.mode_search the proposal gets the
     components infer.modes finds among the rounds' states (`names`: the coordinates', for the
-    log), each refined with draws of its own (modes.refine: posterior evaluations, no steps)."""
+    log), each refined with draws of its own (modes.refine: posterior evaluations, no steps).
+    `carry`: (states, log-posteriors) of an earlier, discarded run of the same target (infer.
+    restart): the mode search runs (with the independence move) over them and the rounds'."""
     log = log or (lambda msg: None)
     nw, ndim = state.shape
     n_draw = max(nw, n_out or nw)
     proposal, prev, steps = None, -np.inf, 0
-    memory = []                  # (states, log-posteriors) kept of each round for the mode search
+    # (states, log-posteriors) kept of each round for the mode search, after a restart's
+    search = cfg.independence and (cfg.mode_search or carry is not None)
+    memory = [] if carry is None else [carry]
     for rnd in range(max(cfg.burn_rounds, cfg.burn_max_rounds)):
         bs = _round(target, state[:nw], cfg, proposal, [seed % (2**32), rnd], intr)
         lpc = bs.get_log_prob()
-        if cfg.mode_search:
+        if search:
             memory.append(modes.keep(bs.get_chain(), lpc))
         new = fit_proposal(bs.get_chain(), lpc)
         ratio, shift = proposal_change(proposal.spread if proposal else None, new.spread)
@@ -123,7 +128,7 @@ def burn_in(target, state: np.ndarray, cfg, seed: int, rng, log=None,
         prev = level
         if rnd + 1 >= cfg.burn_rounds and settled:
             break
-    if cfg.mode_search:
+    if search:
         def density(x):             # the target's log-posterior column (its other ones: blobs)
             if intr is not None:    # a Ctrl-C stops the refinement between two of its rounds
                 intr.check()

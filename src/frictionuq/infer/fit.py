@@ -249,6 +249,7 @@ def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True
               "sampler": {"steps": res.n_steps, "burn": res.burn, "thin": res.thin,
                           "burn_in_phase_steps": res.burn_in_steps,
                           "mode_components": res.mode_components,
+                          "map_restarts": res.map_restarts,
                           "walkers": int(res.chain.shape[1]), "acceptance": res.acceptance,
                           "tau": dict(zip(space.names, map(float, res.tau))),
                           "converged_tau": res.converged_tau, "model_evaluations": res.n_evals,

@@ -1,0 +1,152 @@
+"""The stored run's check of the MAP (frictionuq.infer.restart): a chain that climbs more than
+ABOVE_MAP nats above the MAP restarts the burn-in from the point polished there, once; the
+discarded run's states reach the next burn-in's mode search; a resumed run keeps the new MAP.
+On toy posteriors whose densities are known (the real case, arts-d1's 80 lb level, is in
+docs/log-calibration.md, 2026-12-07, stop 85)."""
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from frictionuq.infer import restart
+from frictionuq.infer import sampler as S
+from frictionuq.infer.sampler import SamplerConfig
+from test_infer_sampler import _three_free_space as _space
+
+# a Gaussian posterior in the prior box's coordinates of three free parameters
+CENTRE = np.array([5.0, 0.5, 0.5])
+SD = np.array([0.8, 0.08, 0.08])
+
+
+class Toy:
+    """What the sampler reads of a LogPosterior, on a known density: one record whose
+    log-likelihood blob is the density itself, and one residual statistic (0)."""
+    n_stats = 1
+
+    def __init__(self):
+        self.space = _space()
+        assert self.space.names == ["fc_fwd", "d3", "v_s"]
+        self.records = [None]
+        self.n_evals = 0
+
+    def __call__(self, theta, stats=False):
+        theta = np.atleast_2d(theta)
+        self.n_evals += len(theta)
+        inside = np.all((theta > self.space.lo) & (theta < self.space.hi), axis=1)
+        lp = np.where(inside, -0.5 * np.sum(((theta - CENTRE) / SD) ** 2, axis=1), -np.inf)
+        return np.column_stack([lp, lp, np.zeros_like(lp)])
+
+    def log_prob(self, theta):
+        return self(theta)[:, 0]
+
+
+def _sample(monkeypatch, tmp_path, restarts=1, max_steps=1500, resume=False, msgs=None):
+    """sample() on the Toy with the multi-start search replaced by one that returns a point 3 sd
+    off the mode in fc_fwd (log-posterior -4.5 against the mode's 0), as a search that missed
+    the highest region would."""
+    poor = CENTRE + np.array([3.0, 0.0, 0.0]) * SD
+    monkeypatch.setattr(S, "find_map", lambda lp, *a, **k: (poor, -4.5, {"start": "search"}))
+    monkeypatch.setattr(S, "gauss_newton_cov", lambda lp, th: np.diag((0.3 * SD) ** 2))
+    cfg = SamplerConfig(run_walkers=8, chunk=250, min_steps=500, max_steps=max_steps,
+                        burn_steps=100, start_profile=False, progress=False,
+                        n_map_restarts=restarts)
+    msgs = [] if msgs is None else msgs
+    res = S.sample(Toy(), None, seed=3, backend_path=tmp_path / "chain.h5", cfg=cfg,
+                   resume=resume, log=msgs.append)
+    return res, msgs
+
+
+def test_a_chain_above_the_map_restarts_the_burn_in_from_the_point_polished_there(monkeypatch, tmp_path):
+    """The chains, started from the poor point's burn-in, soon hold states more than 3 nats above
+    its -4.5: the run restarts once, its MAP polished to the mode (log-posterior within 1e-6 of
+    0), the discarded stored steps counted with the burn-in phase, the new MAP kept in the chain
+    file; the stored run after it samples the Gaussian (each mean within 5 standard errors of
+    the effective draws of the thinned chains: false-alarm rate below 1e-5). Without restarts
+    (n_map_restarts = 0) the MAP stays at the poor point. Seeded: deterministic."""
+    res, msgs = _sample(monkeypatch, tmp_path)
+    assert res.map_restarts == 1
+    assert sum(m.startswith("restart 1: a chain reached") for m in msgs) == 1, msgs
+    assert abs(res.log_prob_map) < 1e-6 and np.allclose(res.theta_map, CENTRE, atol=1e-3 * SD)
+    stored = restart.load_map(_open(tmp_path / "chain.h5"))
+    assert stored[1] == res.log_prob_map and stored[2] == 1
+    # the burn-in phase: the first burn-in, the discarded stored steps (a multiple of the chunk)
+    # and the second burn-in
+    discarded = int(re.search(r"the (\d+) stored steps are discarded", " ".join(msgs)).group(1))
+    assert discarded % 250 == 0 and res.burn_in_steps >= discarded + 2 * 200
+    draws = res.chain.reshape(-1, 3)
+    n_eff = draws.shape[0] * res.thin / max(1.0, res.tau.max())     # thinned by about tau / 4
+    se = SD / np.sqrt(n_eff)
+    assert np.all(np.abs(draws.mean(axis=0) - CENTRE) < 5 * se), (draws.mean(axis=0), se)
+    off, off_msgs = _sample(monkeypatch, tmp_path / "off", restarts=0)
+    assert off.map_restarts == 0 and off.log_prob_map == -4.5
+    assert not any(m.startswith("restart") for m in off_msgs)
+
+
+def test_a_resumed_run_keeps_the_restarts_map_and_does_not_restart_again(monkeypatch, tmp_path):
+    """A run stopped at its cap after a restart, resumed with a higher cap: the resumed session
+    starts from the stored MAP (the search's poor point is not used again, nor does the stored
+    chain, which lies above it, trigger a second restart), and goes on from the stored step."""
+    first, _ = _sample(monkeypatch, tmp_path, max_steps=1000)
+    assert first.map_restarts == 1
+    msgs = []
+    res, _ = _sample(monkeypatch, tmp_path, max_steps=1500, resume=True, msgs=msgs)
+    assert any("MAP of the stored run's restart 1" in m for m in msgs), msgs
+    assert not any(m.startswith("restart") for m in msgs)
+    assert res.map_restarts == 1 and res.log_prob_map == first.log_prob_map
+    assert res.resumed_from == [first.n_steps] == [1000] and res.n_steps > 1000
+
+
+def _open(path):
+    from frictionuq.infer.storage import OpenHDFBackend
+    return OpenHDFBackend(str(path))
+
+
+def test_above_map_finds_the_highest_state_of_the_new_steps_only():
+    """above_map reads the cold chains' states from `start` on, in the prior box's log-posterior
+    (the stored one less the coordinates' Jacobian), and returns the highest when it lies more
+    than ABOVE_MAP above the MAP."""
+    import emcee
+    sp = _space()
+    toy = Toy()
+    from frictionuq.infer.likelihood import UnboundedPosterior
+    target = UnboundedPosterior(toy, stats=True)
+    s = emcee.EnsembleSampler(8, 3, target, vectorize=True)
+    s.random_state = np.random.RandomState(0).get_state()
+    s.run_mcmc(sp.to_u(CENTRE + 0.1 * SD * np.random.default_rng(0).standard_normal((8, 3))), 50,
+               progress=False)
+    u, lp = restart.above_map(s, slice(0, 8), 0, sp, -10.0)
+    assert lp == pytest.approx(toy.log_prob(sp.from_u(u))[0])
+    lps = s.get_log_prob() - sp.log_jac_u(s.get_chain().reshape(-1, 3)).reshape(50, 8)
+    assert lp == pytest.approx(lps.max())
+    assert restart.above_map(s, slice(0, 8), 0, sp, lp - restart.ABOVE_MAP + 1e-9) is None
+    assert restart.above_map(s, slice(0, 8), 50, sp, -10.0) is None      # no new steps
+    k = np.unravel_index(np.argmax(lps[20:]), lps[20:].shape)
+    assert restart.above_map(s, slice(0, 8), 20, sp, -10.0)[1] == pytest.approx(lps[20:][k])
+
+
+def test_the_burn_in_gives_the_discarded_runs_region_a_component():
+    """The burn-in started in the major mode of the two-mode target of test_infer_modes (5 % minor
+    mode far away), with the mode search off: given a discarded run's states of the minor mode
+    (`carry`, as restart.carried passes them), the search runs on them and the proposal gets one
+    component near the minor mode's centre; without them, none. Seeded: deterministic."""
+    from frictionuq.infer.burnin import burn_in
+    from test_infer_modes import M, _draws, _log_target
+
+    def target(x):
+        return _log_target(x)[:, None]
+
+    def run(carry):
+        rng = np.random.default_rng(5)
+        state = 0.3 * rng.standard_normal((32, 3))
+        cfg = SamplerConfig(nwalkers=32, burn_steps=100, progress=False)
+        msgs = []
+        _, p, _ = burn_in(target, state, cfg, seed=5, rng=rng, log=msgs.append, carry=carry)
+        return p, msgs
+    minor = _draws(400, np.random.default_rng(6), minor=True)
+    p, msgs = run((minor, _log_target(minor)))
+    assert len(p.modes) == 1, msgs
+    assert np.all(np.abs(p.modes[0].x_centre - M) < 0.3), p.modes[0].x_centre
+    plain, msgs = run(None)
+    assert plain.modes == () and not any("mode search" in m for m in msgs)
