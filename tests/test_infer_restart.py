@@ -126,27 +126,34 @@ def test_above_map_finds_the_highest_state_of_the_new_steps_only():
     assert restart.above_map(s, slice(0, 8), 20, sp, -10.0)[1] == pytest.approx(lps[20:][k])
 
 
-def test_the_burn_in_gives_the_discarded_runs_region_a_component():
+def test_the_burn_in_after_a_restart_searches_every_state_kept_since_the_fit_began():
     """The burn-in started in the major mode of the two-mode target of test_infer_modes (5 % minor
-    mode far away), with the mode search off: given a discarded run's states of the minor mode
-    (`carry`, as restart.carried passes them), the search runs on them and the proposal gets one
-    component near the minor mode's centre; without them, none. Seeded: deterministic."""
+    mode far away), with cfg.mode_search off. Told to search (as after a restart) with `memory`
+    holding an earlier run's states of the minor mode (the first burn-in's, or the discarded
+    chains' as restart.carried gives them): the proposal gets one component near the minor
+    mode's centre, and the rounds' own kept states are appended to `memory`. Not told to search:
+    no component, nothing logged, whatever `memory` holds. Seeded: deterministic."""
     from frictionuq.infer.burnin import burn_in
     from test_infer_modes import M, _draws, _log_target
 
     def target(x):
         return _log_target(x)[:, None]
 
-    def run(carry):
+    def run(memory, search):
         rng = np.random.default_rng(5)
         state = 0.3 * rng.standard_normal((32, 3))
         cfg = SamplerConfig(nwalkers=32, burn_steps=100, progress=False)
         msgs = []
-        _, p, _ = burn_in(target, state, cfg, seed=5, rng=rng, log=msgs.append, carry=carry)
-        return p, msgs
+        _, p, steps = burn_in(target, state, cfg, seed=5, rng=rng, log=msgs.append,
+                              memory=memory, search=search)
+        return p, steps, msgs
     minor = _draws(400, np.random.default_rng(6), minor=True)
-    p, msgs = run((minor, _log_target(minor)))
+    memory = [(minor, _log_target(minor))]
+    p, steps, msgs = run(memory, True)
     assert len(p.modes) == 1, msgs
     assert np.all(np.abs(p.modes[0].x_centre - M) < 0.3), p.modes[0].x_centre
-    plain, msgs = run(None)
-    assert plain.modes == () and not any("mode search" in m for m in msgs)
+    # each round's every fifth step of its 32 walkers, after the earlier run's states
+    assert memory[0][0] is minor and sum(len(m[0]) for m in memory[1:]) == steps // 5 * 32
+    for mem in ([(minor, _log_target(minor))], None):
+        plain, _, msgs = run(mem, None)
+        assert plain.modes == () and not any("mode search" in m for m in msgs)

@@ -28,7 +28,8 @@
   and after the last round the states where the posterior outweighs the last proposal by more
   than e^3 beyond the round's own top per cent get proposal components of their own, each
   refined by importance sampling (modes.refine). After a restart (infer.restart) the search
-  runs whatever cfg.mode_search says, over the discarded run's states (`carry`) and the rounds'.
+  runs whatever cfg.mode_search says, over every state kept since the fit began: the first
+  burn-in's, the discarded stored run's and the new rounds' (`memory`).
 * The stored run's moves (moves_for(..., stored=True)): with stored_run "chains" the
   independence move and a random walk per walker (proposal.RandomWalkMove), each walker a
   Markov chain of its own; with "ensemble" the independence move beside the DE moves above.
@@ -82,7 +83,8 @@ def moves_for(cfg, proposal=None, stored: bool = False):
 
 
 def burn_in(target, state: np.ndarray, cfg, seed: int, rng, log=None,
-            n_out: int | None = None, intr: Interrupts | None = None, names=None, carry=None):
+            n_out: int | None = None, intr: Interrupts | None = None, names=None,
+            memory: list | None = None, search: bool | None = None):
     """The burn-in phase (module docstring) from walker positions `state` (walkers, ndim) of
     the vectorized emcee target. Rounds of cfg.burn_steps steps, at least cfg.burn_rounds, more
     (up to cfg.burn_max_rounds) while the walkers still climb, some are stuck, or the proposal
@@ -95,19 +97,21 @@ def burn_in(target, state: np.ndarray, cfg, seed: int, rng, log=None,
     walkers), drawn like the next round's. With cfg.mode_search the proposal gets the
     components infer.modes finds among the rounds' states (`names`: the coordinates', for the
     log), each refined with draws of its own (modes.refine: posterior evaluations, no steps).
-    `carry`: (states, log-posteriors) of an earlier, discarded run of the same target (infer.
-    restart): the mode search runs (with the independence move) over them and the rounds'."""
+    `memory`: a list of (states, log-posteriors) pairs of the same target, to which each round's
+    kept states are appended (the caller keeps them: infer.restart) and over which the search
+    runs, earlier runs' included; `search`: run the mode search (None: cfg.mode_search; it needs
+    the independence move)."""
     log = log or (lambda msg: None)
     nw, ndim = state.shape
     n_draw = max(nw, n_out or nw)
     proposal, prev, steps = None, -np.inf, 0
-    # (states, log-posteriors) kept of each round for the mode search, after a restart's
-    search = cfg.independence and (cfg.mode_search or carry is not None)
-    memory = [] if carry is None else [carry]
+    search = cfg.independence and (cfg.mode_search if search is None else search)
+    keeping = search or memory is not None
+    memory = [] if memory is None else memory    # (states, log-posteriors) kept, for the search
     for rnd in range(max(cfg.burn_rounds, cfg.burn_max_rounds)):
         bs = _round(target, state[:nw], cfg, proposal, [seed % (2**32), rnd], intr)
         lpc = bs.get_log_prob()
-        if search:
+        if keeping:
             memory.append(modes.keep(bs.get_chain(), lpc))
         new = fit_proposal(bs.get_chain(), lpc)
         ratio, shift = proposal_change(proposal.spread if proposal else None, new.spread)

@@ -17,10 +17,14 @@ What: at every check of the stored run, the cold chains' states since the last c
 for a log-posterior (in the prior box's coordinates, the MAP's) more than ABOVE_MAP nats above
 the MAP's. Such a state proves the search missed a higher region: the MAP is polished from it,
 the stored steps so far are discarded (counted with the burn-in phase), and the burn-in runs
-again from the new MAP, its mode search (infer.modes) given the discarded chains' states
-(every MEMORY_STRIDE-th step) beside its own rounds'. The region the chains had covered (around
-the old MAP) is then where the new proposal is weak, and gets components of its own; the
-stored run proposes from the mixture. At most `map_restarts` times per fit (default 1).
+again from the new MAP, its mode search (infer.modes) given every state kept since the fit
+began (every MEMORY_STRIDE-th step): the first burn-in's, the discarded chains' and its own
+rounds'. The region the chains had covered (around the old MAP) is then where the new proposal
+is weak, and gets components of its own, as does any region the first burn-in passed through
+(the dataset-2 fit's first rounds sit in d3's second mode: with the discarded chains' states
+alone, 500 steps that had left it, the search after the restart found too few states there and
+added none, where the first burn-in's search had added one); the stored run proposes from the
+mixture. At most `n_map_restarts` times per fit (default 1).
 
 Exactness: the stored run that is kept starts after the last restart with a fixed proposal; the
 states that shaped it are discarded, as every burn-in's are. ABOVE_MAP: the MAP is polished to

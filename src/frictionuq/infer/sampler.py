@@ -63,8 +63,9 @@ until the chain passes the convergence criteria.
   a cold chain's state more than 3 nats above the MAP proves that the multi-start search missed
   a higher region, which the burn-in (started at the MAP) never entered. The MAP is polished from
   that state, the stored steps are discarded (counted with the burn-in phase), and the burn-in
-  runs again from the new MAP, its mode search given the discarded chains' states, so that the
-  region they covered gets a proposal component. Real arts-d1 80 lb level (2026-12-07, stop 85):
+  runs again from the new MAP, its mode search given every state kept since the fit began (the
+  first burn-in's and the discarded chains'), so that the regions they covered get proposal
+  components. Real arts-d1 80 lb level (2026-12-07, stop 85):
   every seed's search had missed a region holding about 88 % of the mass; R-hat grew to 1.833
   in 100,000 steps; with the check, seed 2 restarted after 1,500 steps and converged after
   5,500 (355 s), its chains 82-93 % in that region.
@@ -174,12 +175,13 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
     if resumed:
         account["resumed_from"].append(int(resumed))
         log(f"resuming from stored step {resumed}")
-    carry = None
+    # the states kept since the fit began (every fifth step): a restart's mode search reads them
+    memory = [] if cfg.independence else None
     while True:
         state = proposal = None
         if not resumed:
             state, proposal, steps = _burn_in(logpost, target, theta_map, lp_map, cfg, seed, rng,
-                                              log, intr, nw, nrun, carry)
+                                              log, intr, nw, nrun, memory, restarts > 0)
             account["burn_in_steps"] += steps
         if resumed:      # the stored run's proposal is kept in the backend's attributes
             proposal = load_proposal(backend)
@@ -212,9 +214,10 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
             f"{lp_best - lp_map:.1f} above the MAP: the multi-start search missed a higher region "
             f"that the burn-in never entered. MAP now {lp_new:.6g} nats (polished from there); the "
             f"{n_done} stored steps are discarded (counted with the burn-in phase) and the burn-in "
-            f"starts again at the new MAP, its mode search given their states")
+            f"starts again at the new MAP, its mode search given every state kept so far")
         theta_map, lp_map = theta_new, lp_new
-        carry = carried(sampler, _cold(cfg, nrun))
+        if memory is not None:
+            memory.append(carried(sampler, _cold(cfg, nrun)))
         account["burn_in_steps"] += n_done
         backend, resumed = open_backend(backend_path, nrun, ndim, False, log, key=run_key)
         store_map(backend, theta_map, lp_map, restarts)
@@ -230,9 +233,11 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
     return res
 
 
-def _burn_in(logpost, target, theta_map, lp_map, cfg, seed, rng, log, intr, nw, nrun, carry):
+def _burn_in(logpost, target, theta_map, lp_map, cfg, seed, rng, log, intr, nw, nrun, memory,
+             restarted):
     """The start ball around the MAP and the burn-in phase (infer.burnin): (the stored run's
-    positions, its proposal, burn-in steps)."""
+    positions, its proposal, burn-in steps). After a restart the mode search runs over `memory`
+    (every state kept since the fit began) whatever cfg.mode_search says."""
     sp = logpost.space
     cov = gauss_newton_cov(logpost, theta_map)
     sides = (profile_sides(logpost.log_prob, theta_map, lp_map, cov, sp)
@@ -243,7 +248,7 @@ def _burn_in(logpost, target, theta_map, lp_map, cfg, seed, rng, log, intr, nw, 
     state = sp.to_u(initial_ball(theta_map, cov, nw, rng, sp, sides))
     state, proposal, steps = burn_in(target, state, cfg, seed, rng, log, intr=intr,
                                      n_out=nrun if nrun != nw else None, names=sp.names,
-                                     carry=carry)
+                                     memory=memory, search=True if restarted else None)
     return state[:nrun], proposal, steps
 
 
