@@ -1,4 +1,4 @@
-"""The stored run's check of the MAP (SamplerConfig.map_restarts; infer.sampler runs it).
+"""The stored run's check of the MAP (SamplerConfig.n_map_restarts; infer.sampler runs it).
 
 Why: the burn-in starts at the MAP that the multi-start search (infer.optimize) returns, and its
 walkers and proposal cover the region around it. If the search missed a region that holds more

@@ -176,7 +176,7 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
         account["resumed_from"].append(int(resumed))
         log(f"resuming from stored step {resumed}")
     # the states kept since the fit began (every fifth step): a restart's mode search reads them
-    memory = [] if cfg.independence else None
+    memory = [] if cfg.independence and cfg.n_map_restarts > 0 else None
     while True:
         state = proposal = None
         if not resumed:
