@@ -42,13 +42,19 @@ class Toy:
         return self(theta)[:, 0]
 
 
-def _sample(monkeypatch, tmp_path, restarts=1, max_steps=1500, resume=False, msgs=None):
+def _sample(monkeypatch, tmp_path, restarts=1, max_steps=1500, resume=False, msgs=None,
+            burn_in_rises=False):
     """sample() on the Toy with the multi-start search replaced by one that returns a point 3 sd
     off the mode in fc_fwd (log-posterior -4.5 against the mode's 0), as a search that missed
-    the highest region would."""
+    the highest region would. The burn-in's walkers climb to the mode; unless `burn_in_rises`,
+    the sampler is kept from seeing it (restart.burn_in_map replaced by one that never moves the
+    MAP), as when the burn-in stays out of the higher region and only the stored chains find
+    it."""
     poor = CENTRE + np.array([3.0, 0.0, 0.0]) * SD
     monkeypatch.setattr(S, "find_map", lambda lp, *a, **k: (poor, -4.5, {"start": "search"}))
     monkeypatch.setattr(S, "gauss_newton_cov", lambda lp, th: np.diag((0.3 * SD) ** 2))
+    if not burn_in_rises:
+        monkeypatch.setattr(S, "burn_in_map", lambda lp, kept, th, v: (th, v, False))
     cfg = SamplerConfig(run_walkers=8, chunk=250, min_steps=500, max_steps=max_steps,
                         burn_steps=100, start_profile=False, progress=False,
                         n_map_restarts=restarts)
@@ -92,10 +98,45 @@ def test_a_resumed_run_keeps_the_restarts_map_and_does_not_restart_again(monkeyp
     assert first.map_restarts == 1
     msgs = []
     res, _ = _sample(monkeypatch, tmp_path, max_steps=1500, resume=True, msgs=msgs)
-    assert any("MAP of the stored run's restart 1" in m for m in msgs), msgs
+    assert any("MAP kept with the stored chain" in m and "restarts before it: 1" in m
+               for m in msgs), msgs
     assert not any(m.startswith("restart") for m in msgs)
     assert res.map_restarts == 1 and res.log_prob_map == first.log_prob_map
     assert res.resumed_from == [first.n_steps] == [1000] and res.n_steps > 1000
+
+
+def test_a_burn_in_that_climbs_above_the_map_polishes_it_and_the_stored_run_does_not_restart(
+        monkeypatch, tmp_path):
+    """The same poor search point, the sampler as it is: the burn-in's walkers climb to the
+    mode, so the MAP is polished from the last round's highest state (to the mode, within 1e-6
+    nats), kept in the chain file, and the stored run, whose proposal covers the mode, never
+    finds a chain above it: no restart (one would discard the stored steps and run the burn-in
+    again). A resumed run keeps that MAP. Seeded: deterministic."""
+    res, msgs = _sample(monkeypatch, tmp_path, max_steps=1000, burn_in_rises=True)
+    assert res.map_restarts == 0 and not any(m.startswith("restart") for m in msgs), msgs
+    assert sum(m.startswith("the burn-in's last round rose") for m in msgs) == 1, msgs
+    assert abs(res.log_prob_map) < 1e-6 and np.allclose(res.theta_map, CENTRE, atol=1e-3 * SD)
+    assert restart.load_map(_open(tmp_path / "chain.h5"))[1:] == (res.log_prob_map, 0)
+    again, more = _sample(monkeypatch, tmp_path, max_steps=1500, resume=True,
+                          burn_in_rises=True)
+    assert any("MAP kept with the stored chain" in m for m in more), more
+    assert again.log_prob_map == res.log_prob_map and again.map_restarts == 0
+    assert not any(m.startswith(("restart", "the burn-in's")) for m in more), more
+
+
+def test_burn_in_map_moves_only_past_above_map():
+    """burn_in_map polishes from the highest kept state (box coordinates) only when it lies more
+    than ABOVE_MAP above the MAP."""
+    sp = _space()
+    toy = Toy()
+    theta = CENTRE + np.array([[1.0, 0, 0], [2.0, 0, 0]]) * SD      # -0.5 and -2.0
+    u = sp.to_u(theta)
+    kept = (u, toy.log_prob(theta) + sp.log_jac_u(u))
+    th0 = CENTRE + np.array([3.0, 0, 0]) * SD
+    th, lp, moved = restart.burn_in_map(toy, kept, th0, -4.5)
+    assert moved and abs(lp) < 1e-6
+    th, lp, moved = restart.burn_in_map(toy, kept, th0, -3.4)      # -0.5 is 2.9 above
+    assert not moved and lp == -3.4 and th is th0
 
 
 def _open(path):
@@ -157,3 +198,77 @@ def test_the_burn_in_after_a_restart_searches_every_state_kept_since_the_fit_beg
     for mem in ([(minor, _log_target(minor))], None):
         plain, _, msgs = run(mem, None)
         assert plain.modes == () and not any("mode search" in m for m in msgs)
+
+
+class _Stored:
+    """What MapCheck reads of an emcee sampler: a stored chain (steps, chains, D) in the
+    sampler's coordinates and its log-posteriors there."""
+
+    def __init__(self, u, lp_u):
+        self.u, self.lp, self.iteration = u, lp_u, len(u)
+
+    def get_chain(self, discard=0):
+        return self.u[discard:]
+
+    def get_log_prob(self, discard=0):
+        return self.lp[discard:]
+
+
+def _underweighted_run(sp, toy, k=2.0):
+    """40 steps of 4 chains around the poor point 3 sd off the Toy's mode (log-posterior about
+    -4.5), but one state at step 35, k sd off the mode (k = 2: log-posterior -2.0, 2.5 nats above
+    the poor point, under ABOVE_MAP), far outside the proposal: a normal in u fitted to the
+    other states. Returns (sampler stand-in, logq)."""
+    rng = np.random.default_rng(8)
+    poor = CENTRE + np.array([3.0, 0.0, 0.0]) * SD
+    theta = poor + 0.2 * SD * rng.standard_normal((40, 4, 3))
+    theta[35, 2] = CENTRE + np.array([k, 0.0, 0.0]) * SD
+    u = sp.to_u(theta.reshape(-1, 3))
+    lp_u = toy.log_prob(theta.reshape(-1, 3)) + sp.log_jac_u(u)
+    others = np.delete(u, 35 * 4 + 2, axis=0)
+    mu, sd = others.mean(axis=0), others.std(axis=0)
+
+    def logq(x):
+        return -0.5 * np.sum(((x - mu) / sd) ** 2, axis=1)
+    return _Stored(u.reshape(40, 4, 3), lp_u.reshape(40, 4)), logq
+
+
+def test_the_check_polishes_a_state_the_proposal_underweights_and_restarts_from_above_the_map():
+    """No stored state lies ABOVE_MAP above the MAP (-4.5), but one lies far outside the stored
+    run's proposal: MapCheck polishes from it (Powell, on the log-posterior) and returns the
+    polished point, the Toy's mode (log-posterior 0 within 1e-6), to restart from. Steps before
+    the chunk are not read again; a state deeper than ABOVE_MAP - D / 2 above the MAP is not
+    polished; a polish that ends less than ABOVE_MAP above the MAP is spent (counted) and returns
+    nothing; with the budget spent no polish runs. Deterministic."""
+    sp = _space()
+    toy = Toy()
+    stored, logq = _underweighted_run(sp, toy)
+    assert restart.above_map(stored, slice(0, 4), 30, sp, -4.5) is None
+    msgs = []
+    check = restart.MapCheck(toy, -4.5, logq, log=msgs.append)
+    theta, lp, how = check(stored, slice(0, 4), 30)
+    assert abs(lp) < 1e-6 and np.allclose(theta, CENTRE, atol=1e-3 * SD)
+    assert how == "a polish from such a state reached" and check.polishes == 1
+    assert "(log-posterior -2 nats, +2.5 against the MAP)" in msgs[0], msgs
+    n = toy.n_evals
+    assert restart.MapCheck(toy, -4.5, logq)(stored, slice(0, 4), 36) is None   # chunk after it
+    assert toy.n_evals == n                                                      # nothing polished
+    deep = restart.MapCheck(toy, -2.9, logq)      # -2.0 is deeper than -2.9 + 3 - 1.5
+    assert deep(stored, slice(0, 4), 30) is None and deep.polishes == 0 and toy.n_evals == n
+    closer, logq15 = _underweighted_run(sp, toy, k=1.5)     # -1.125: polished, but the mode
+    near = restart.MapCheck(toy, -2.9, logq15)              # is only 2.9 above the MAP
+    assert near(closer, slice(0, 4), 30) is None and near.polishes == 1 and toy.n_evals > n
+    spent = restart.MapCheck(toy, -4.5, logq, polishes=restart.MAX_POLISHES)
+    n = toy.n_evals
+    assert spent(stored, slice(0, 4), 30) is None and toy.n_evals == n
+    assert restart.MapCheck(toy, -4.5, None)(stored, slice(0, 4), 30) is None   # no proposal
+
+
+def test_the_polish_count_is_kept_in_the_chain_file(tmp_path):
+    """A resumed fit reads the polishes spent so far (store_polishes / load_polishes): 0 on a new
+    chain file."""
+    from frictionuq.infer.storage import open_backend
+    backend, _ = open_backend(tmp_path / "chain.h5", 4, 3, False)
+    assert restart.load_polishes(backend) == 0
+    restart.store_polishes(backend, 3)
+    assert restart.load_polishes(_open(tmp_path / "chain.h5")) == 3

@@ -246,7 +246,7 @@ def _stop_step(monkeypatch, rule_met: list[bool], confirm_checks: int) -> tuple[
     msgs = []
     n, conv, found = S._run(s, np.random.default_rng(2).standard_normal((8, 2)), cfg, sp, 0, [],
                             msgs.append)
-    assert found is None                   # no MAP given: no check against it
+    assert found is None                   # no MAP check given: none run
     return n, conv, msgs
 
 

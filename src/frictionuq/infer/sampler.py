@@ -65,10 +65,13 @@ until the chain passes the convergence criteria.
   that state, the stored steps are discarded (counted with the burn-in phase), and the burn-in
   runs again from the new MAP, its mode search given every state kept since the fit began (the
   first burn-in's and the discarded chains'), so that the regions they covered get proposal
-  components. Real arts-d1 80 lb level (2026-12-07, stop 85):
-  every seed's search had missed a region holding about 88 % of the mass; R-hat grew to 1.833
-  in 100,000 steps; with the check, seed 2 restarted after 1,500 steps and converged after
-  5,500 (355 s), its chains 82-93 % in that region.
+  components. As a region's typical states lie below its peak, the highest new state that the
+  stored run's proposal underweights is also polished (at most 10 times a run), and a polish
+  that ends 3 nats above the MAP restarts the same way. Real arts-d1 80 lb level (2026-12-07,
+  stops 85 and 86): every seed's search had missed a region holding about 88 % of the mass;
+  R-hat grew to 1.833 in 100,000 steps; with the check, seed 2 restarted after 1,500 steps and
+  converged after 5,500 (355 s), its chains 82-93 % in that region; seed 1's chains entered it
+  only from step 7,500 on, 2 nats below the MAP, and the polish restarted from there.
 * Storage (storage.py): emcee's HDF5 backend (in u coordinates), written every step: an
   interrupted run resumes from its last step (random state included) with `resume=True`, and
   replays the stored chain's checks first (convergence.replay), so that it checks on the same
@@ -91,7 +94,7 @@ from .convergence import autocorr_time, check, replay, rule_met, thinning
 from .likelihood import LogPosterior, UnboundedPosterior
 from .localfit import gauss_newton_cov
 from .optimize import find_map, polish
-from .restart import above_map, carried, load_map, store_map
+from .restart import MapCheck, burn_in_map, carried, load_map, load_polishes, store_map
 from .tempering import default_ratio, ladder, swap_rates, tempered_moves
 from .storage import load_account, load_proposal, open_backend, store_account, store_proposal
 from .priors import RecordScales
@@ -163,9 +166,10 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
                                            start=start)
     restarts = 0
     stored_map = load_map(backend) if resumed else None
-    if stored_map is not None:          # the stored run began after a restart (infer.restart)
+    if stored_map is not None:   # polished after the burn-in, or a restart (infer.restart)
         theta_map, lp_map, restarts = stored_map
-        log(f"MAP of the stored run's restart {restarts} (infer.restart), kept with the chain")
+        log(f"MAP kept with the stored chain (polished after its burn-in; restarts before it: "
+            f"{restarts}; infer.restart)")
     log(f"MAP log-posterior {lp_map:.6g} nats")
     # from here on a Ctrl-C is only noted and raised at the next step or chunk (run_steps): one
     # raised between chunks could land in a finaliser, where Python prints it and goes on
@@ -183,6 +187,13 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
             state, proposal, steps = _burn_in(logpost, target, theta_map, lp_map, cfg, seed, rng,
                                               log, intr, nw, nrun, memory, restarts > 0)
             account["burn_in_steps"] += steps
+            if memory:       # its walkers rose above the MAP: the stored run checks against theirs
+                theta_map, lp_up, moved = burn_in_map(logpost, memory[-1], theta_map, lp_map)
+                if moved:
+                    log(f"the burn-in's last round rose more than 3 nats above the MAP: MAP "
+                        f"polished from its highest state, {lp_map:.6g} -> {lp_up:.6g} nats")
+                    lp_map = lp_up
+                    store_map(backend, theta_map, lp_map, restarts)
         if resumed:      # the stored run's proposal is kept in the backend's attributes
             proposal = load_proposal(backend)
         else:
@@ -193,9 +204,13 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
         before = dict(account)
         if backend is not None:
             backend.keep_open()
+        map_check = None
+        if restarts < cfg.n_map_restarts:
+            map_check = MapCheck(logpost, lp_map, proposal.move().logq if cfg.independence else None,
+                                 load_polishes(backend) if resumed else 0, backend, log)
         try:
             n_done, converged, found = _run(sampler, state, cfg, sp, resumed, history, log, intr,
-                                            moves, lp_map if restarts < cfg.n_map_restarts else None)
+                                            moves, map_check)
         finally:
             if backend is not None:
                 backend.close()
@@ -206,11 +221,11 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
                           __version__, seed)
         if found is None:
             break
-        # a chain climbed above the MAP: the burn-in again from there (infer.restart)
-        u_best, lp_best = found
-        theta_new, lp_new = polish(logpost, sp.from_u(u_best), lp_best)
+        # a point above the MAP: the burn-in again from there (infer.restart)
+        theta_best, lp_best, how = found
+        theta_new, lp_new = polish(logpost, theta_best, lp_best)
         restarts += 1
-        log(f"restart {restarts}: a chain reached log-posterior {lp_best:.6g} nats, "
+        log(f"restart {restarts}: {how} log-posterior {lp_best:.6g} nats, "
             f"{lp_best - lp_map:.1f} above the MAP: the multi-start search missed a higher region "
             f"that the burn-in never entered. MAP now {lp_new:.6g} nats (polished from there); the "
             f"{n_done} stored steps are discarded (counted with the burn-in phase) and the burn-in "
@@ -272,14 +287,14 @@ def _cold(cfg: SamplerConfig, n_walkers: int) -> slice:
     return slice(0, cfg.run_walkers if cfg.temperatures > 1 else n_walkers)
 
 
-def _run(sampler, state, cfg, sp, n_done, history, log, intr=None, moves=(), lp_map=None):
+def _run(sampler, state, cfg, sp, n_done, history, log, intr=None, moves=(), map_check=None):
     """The stored run in chunks until the convergence criteria or the step cap. The checks fall
     on multiples of `chunk` stored steps; a resumed run (n_done > 0) first replays the stored
     chain's checks (convergence.replay) to restore the rule's state (the last max tau and the
     checks in a row it held at), so that it checks and stops where the uninterrupted run would.
-    With `lp_map`, each chunk's states are also checked against the MAP (restart.above_map):
-    returns (steps, converged, None), or (steps, False, (state, log-posterior)) when a chain
-    has climbed above the MAP, at once."""
+    With `map_check` (restart.MapCheck), each chunk's states are also checked against the MAP:
+    returns (steps, converged, None), or (steps, False, (theta, log-posterior, how)) at once when
+    the check finds a point above it."""
     cold = _cold(cfg, sampler.nwalkers)
     prev_tau, passes = _replayed(sampler, cfg, sp, cold, n_done, log)
     converged = passes >= cfg.confirm_checks
@@ -288,7 +303,7 @@ def _run(sampler, state, cfg, sp, n_done, history, log, intr=None, moves=(), lp_
         run_steps(sampler, state, n, progress=progress_bar(cfg), intr=intr)
         state = None
         chunk_start, n_done = n_done, int(sampler.iteration)
-        found = above_map(sampler, cold, chunk_start, sp, lp_map) if lp_map is not None else None
+        found = map_check(sampler, cold, chunk_start) if map_check is not None else None
         if found is not None:
             return n_done, False, found
         if n_done < cfg.min_steps:
