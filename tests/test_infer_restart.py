@@ -264,6 +264,29 @@ def test_the_check_polishes_a_state_the_proposal_underweights_and_restarts_from_
     assert restart.MapCheck(toy, -4.5, None)(stored, slice(0, 4), 30) is None   # no proposal
 
 
+def test_the_checks_polish_is_one_pass_of_at_most_polish_evals_per_parameter(monkeypatch):
+    """MapCheck's polish stops at POLISH_EVALS evaluations per free parameter (a polish that
+    wanders back to the MAP's region on a flat ridge must not cost a fit's worth); optimize.polish
+    honours `max_evals` (Powell's maxfev, read between line searches, so a search under way may
+    finish: from 3 sd off the Toy's mode, capped at 12 it stops after 12-20 evaluations, uncapped
+    it needs 38 and reaches the mode)."""
+    from frictionuq.infer.optimize import polish
+    toy = Toy()
+    th0 = CENTRE + np.array([3.0, 1.0, -1.0]) * SD
+    lp0 = float(toy.log_prob(th0[None])[0])
+    _, lp = polish(toy, th0, lp0, passes=1, max_evals=12)
+    assert 12 <= toy.n_evals <= 20 and lp > lp0
+    toy.n_evals = 0
+    _, lp = polish(toy, th0, lp0, passes=1)
+    assert toy.n_evals > 20 and abs(lp) < 1e-6
+    seen = {}
+    monkeypatch.setattr(restart, "polish", lambda lp, th, v, **kw: seen.update(kw) or (th, v))
+    sp = _space()
+    stored, logq = _underweighted_run(sp, toy)
+    restart.MapCheck(toy, -4.5, logq)(stored, slice(0, 4), 30)
+    assert seen == {"passes": 1, "max_evals": restart.POLISH_EVALS * 3}
+
+
 def test_the_polish_count_is_kept_in_the_chain_file(tmp_path):
     """A resumed fit reads the polishes spent so far (store_polishes / load_polishes): 0 on a new
     chain file."""

@@ -328,7 +328,7 @@ def _multi_start(logpost, scales, rng, n_random, n_prior, n_draws, log, n_global
 
 
 def polish(logpost: LogPosterior, theta: np.ndarray, lp: float,
-           passes: int = 3) -> tuple[np.ndarray, float]:
+           passes: int = 3, max_evals: int | None = None) -> tuple[np.ndarray, float]:
     """Powell's method on the full log-posterior from theta (log-posterior lp): the best point it
     evaluated (never below theta), and again from there while a pass gains more than 0.1 (at most
     `passes` passes). Why the best point evaluated and not Powell's answer: scipy's bounded Powell
@@ -336,9 +336,13 @@ def polish(logpost: LogPosterior, theta: np.ndarray, lp: float,
     off (scipy issue 22978). Seen on a BRFD campaign with a hidden takeup_overshoot (seed 13,
     records kept at 50 Hz or more, the plain 3-stage model's MAP search): Powell returned
     -28,965.1 from a start at -26,819.5 after visiting -26,750.3 (the old polish then kept the
-    start: no gain)."""
+    start: no gain). `max_evals`: a cap on the log-posterior evaluations of each pass (None:
+    Powell's own stopping rules only)."""
     sp = logpost.space
     best = {"x": np.asarray(theta, float), "f": -lp}
+    opts = {"maxiter": 4000, "xtol": 1e-8, "ftol": 1e-12}
+    if max_evals is not None:
+        opts["maxfev"] = int(max_evals)
 
     def nlp(x):
         v = logpost.log_prob(x[None, :])[0]
@@ -348,8 +352,7 @@ def polish(logpost: LogPosterior, theta: np.ndarray, lp: float,
         return f
     for _ in range(passes):
         f0 = best["f"]
-        minimize(nlp, best["x"], method="Powell", bounds=list(zip(sp.lo, sp.hi)),
-                 options={"maxiter": 4000, "xtol": 1e-8, "ftol": 1e-12})
+        minimize(nlp, best["x"], method="Powell", bounds=list(zip(sp.lo, sp.hi)), options=opts)
         if f0 - best["f"] <= 0.1:
             break
     return best["x"], (-float(best["f"]) if best["f"] < 1e300 else -np.inf)
