@@ -91,28 +91,35 @@ class MapCheck:
 
     def __call__(self, sampler, cold: slice, start: int):
         sp = self.logpost.space
-        found = above_map(sampler, cold, start, sp, self.lp_map)
-        if found is not None:
-            return sp.from_u(found[0]), found[1], "a chain reached"
+        u, lp_u = _new_states(sampler, cold, start)
+        if u.size == 0:
+            return None
+        k, lp = _highest(sp, u, lp_u)
+        if lp > self.lp_map + ABOVE_MAP:
+            return sp.from_u(u[k]), lp, "a chain reached"
         if self.logq is None or self.polishes >= MAX_POLISHES:
             return None
-        cand = underweighted(sampler, cold, start, sp, self.logq)
+        ref_u, ref_lp = keep(sampler.get_chain()[:, cold], sampler.get_log_prob()[:, cold])
+        mask = flagged(u, lp_u, ref_u, ref_lp, self.logq)
+        if not mask.any():
+            return None
+        k, lp = _highest(sp, u, lp_u, mask)     # the highest state the proposal underweights
         # a region that peaks ABOVE_MAP above the MAP has its typical states about D / 2 below
         # that: a flagged state deeper than this lies in a region no higher than the MAP's
-        if cand is None or cand[1] < self.lp_map + ABOVE_MAP - 0.5 * sp.ndim:
+        if lp < self.lp_map + ABOVE_MAP - 0.5 * sp.ndim:
             return None
         self.polishes += 1
         store_polishes(self.backend, self.polishes)
         n0 = self.logpost.n_evals
-        theta, lp = polish(self.logpost, sp.from_u(cand[0]), cand[1], passes=1,
-                           max_evals=POLISH_EVALS * sp.ndim)
+        theta, best = polish(self.logpost, sp.from_u(u[k]), lp, passes=1,
+                             max_evals=POLISH_EVALS * sp.ndim)
         self.log(f"step {sampler.iteration}: polished from a stored state the proposal "
-                 f"underweights (log-posterior {cand[1]:.6g} nats, {cand[1] - self.lp_map:+.1f} "
-                 f"against the MAP) to {lp:.6g} ({lp - self.lp_map:+.1f}; "
+                 f"underweights (log-posterior {lp:.6g} nats, {lp - self.lp_map:+.1f} against "
+                 f"the MAP) to {best:.6g} ({best - self.lp_map:+.1f}; "
                  f"{self.logpost.n_evals - n0} evaluations; polish {self.polishes} of "
                  f"{MAX_POLISHES})")
-        return (theta, lp, "a polish from such a state reached") \
-            if lp > self.lp_map + ABOVE_MAP else None
+        return (theta, best, "a polish from such a state reached") \
+            if best > self.lp_map + ABOVE_MAP else None
 
 
 def burn_in_map(logpost, kept, theta_map: np.ndarray, lp_map: float):
@@ -126,49 +133,39 @@ def burn_in_map(logpost, kept, theta_map: np.ndarray, lp_map: float):
     restart, 114,392 evaluations to convergence)."""
     sp = logpost.space
     u, lp_u = kept
-    lp = lp_u - sp.log_jac_u(u)
-    lp = np.where(np.isfinite(lp), lp, -np.inf)
-    k = int(np.argmax(lp))
-    if not lp[k] > lp_map + ABOVE_MAP:
+    k, lp = _highest(sp, u, lp_u)
+    if not lp > lp_map + ABOVE_MAP:
         return theta_map, lp_map, False
-    theta, best = polish(logpost, sp.from_u(u[k]), float(lp[k]))
+    theta, best = polish(logpost, sp.from_u(u[k]), lp)
     return theta, best, True
-
-
-def underweighted(sampler, cold: slice, start: int, sp, logq):
-    """(state u, its log-posterior in box coordinates) of the highest-log-posterior state among
-    the cold chains' stored steps from `start` on that the proposal `logq` underweights
-    (modes.flagged, against every MEMORY_STRIDE-th stored state as the reference), or None."""
-    u = sampler.get_chain(discard=start)[:, cold]
-    if u.size == 0:
-        return None
-    d = u.shape[-1]
-    u = u.reshape(-1, d)
-    lp_u = sampler.get_log_prob(discard=start)[:, cold].reshape(-1)
-    ref_u, ref_lp = keep(sampler.get_chain()[:, cold], sampler.get_log_prob()[:, cold])
-    mask = flagged(u, lp_u, ref_u, ref_lp, logq)
-    if not mask.any():
-        return None
-    lp = np.where(mask, lp_u - sp.log_jac_u(u), -np.inf)
-    k = int(np.argmax(lp))
-    return u[k].copy(), float(lp[k])
 
 
 def above_map(sampler, cold: slice, start: int, sp, lp_map: float):
     """(state u, its log-posterior in box coordinates) of the cold chains' highest state among
     the stored steps from `start` on, if it lies more than ABOVE_MAP nats above `lp_map`; else
     None."""
-    u = sampler.get_chain(discard=start)[:, cold]
+    u, lp_u = _new_states(sampler, cold, start)
     if u.size == 0:
         return None
-    d = u.shape[-1]
-    lp_u = sampler.get_log_prob(discard=start)[:, cold]
-    lp = (lp_u - sp.log_jac_u(u.reshape(-1, d)).reshape(lp_u.shape)).reshape(-1)
-    lp = np.where(np.isfinite(lp), lp, -np.inf)
+    k, lp = _highest(sp, u, lp_u)
+    return (u[k].copy(), lp) if lp > lp_map + ABOVE_MAP else None
+
+
+def _new_states(sampler, cold: slice, start: int) -> tuple[np.ndarray, np.ndarray]:
+    """The cold chains' stored states from step `start` on, flattened ((n, D), (n,)), with their
+    log-posteriors in the sampler's coordinates."""
+    u = sampler.get_chain(discard=start)[:, cold]
+    return u.reshape(-1, u.shape[-1]), sampler.get_log_prob(discard=start)[:, cold].reshape(-1)
+
+
+def _highest(sp, u: np.ndarray, lp_u: np.ndarray, mask=None) -> tuple[int, float]:
+    """(index, log-posterior in box coordinates) of the highest of the states `u` (sampler's
+    coordinates, log-posteriors `lp_u` there; among `mask` if given)."""
+    lp = lp_u - sp.log_jac_u(u)
+    ok = np.isfinite(lp) if mask is None else np.isfinite(lp) & mask
+    lp = np.where(ok, lp, -np.inf)
     k = int(np.argmax(lp))
-    if not lp[k] > lp_map + ABOVE_MAP:
-        return None
-    return u.reshape(-1, d)[k].copy(), float(lp[k])
+    return k, float(lp[k])
 
 
 def carried(sampler, cold: slice) -> tuple[np.ndarray, np.ndarray]:
