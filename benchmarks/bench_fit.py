@@ -40,8 +40,8 @@ not tempered).
 --samples-per-cycle: the decimation's kept rate as a multiple of each test's frequency
 (FitConfig.samples_per_cycle; default the CLI's 400; workflows/brfd-arts.toml uses 150).
 --mode-search: the burn-in's search for regions its proposal misses, each given a proposal
-component (SamplerConfig.mode_search, infer.modes; off by default), on, or both side by side with
-their time ratio.
+component (SamplerConfig.mode_search, infer.modes; on by default since 2026-12-07, as in the
+CLI), off, or both side by side with their time ratio.
 --confirm: the checks in a row at which the stopping rule must hold before the run stops
 (SamplerConfig.confirm_checks: 2, the default since 2026-12-05; 1, the rule before), or both
 side by side with their time ratio.
@@ -84,24 +84,24 @@ DEFAULT_CONFIRM = SamplerConfig().confirm_checks
 
 def run_name(case: str, simulate_at: str, sampler: str, jobs: int, force_offset: str,
              temperatures: int = 1, samples_per_cycle: float | None = None,
-             confirm: int = DEFAULT_CONFIRM, mode_search: bool = False) -> str:
+             confirm: int = DEFAULT_CONFIRM, mode_search: bool = True) -> str:
     """The folder of one benchmark fit under --out: every option that changes the fit in it."""
     return (f"{case}-{simulate_at}-{sampler}-j{jobs}-{force_offset}"
             + (f"-T{temperatures}" if temperatures > 1 else "")
             + (f"-spc{samples_per_cycle:g}" if samples_per_cycle else "")
             + (f"-c{confirm}" if confirm != DEFAULT_CONFIRM else "")
-            + ("-modes" if mode_search else ""))
+            + ("" if mode_search else "-nomodes"))
 
 
 def run_tag(force_offset: str, temperatures: int = 1,
             samples_per_cycle: float | None = None, confirm: int = DEFAULT_CONFIRM,
-            mode_search: bool = False) -> str:
+            mode_search: bool = True) -> str:
     """The printed label's options beyond the defaults (the rows' and the ratios' keys)."""
     return (("" if force_offset == "shared" else f", {force_offset} offsets")
             + ("" if temperatures == 1 else f", T{temperatures}")
             + (f", {samples_per_cycle:g} per cycle" if samples_per_cycle else "")
             + ("" if confirm == DEFAULT_CONFIRM else f", confirm {confirm}")
-            + (", mode search" if mode_search else ""))
+            + ("" if mode_search else ", no mode search"))
 
 
 def target_verdict(result: dict) -> str:
@@ -118,7 +118,7 @@ def run(case: str, out: Path, simulate_at: str = "raw", sampler: str = "chains",
         tests=None, jobs: int = 1, max_steps: int | None = None,
         force_offset: str = "shared", temperatures: int = 1,
         samples_per_cycle: float | None = None, confirm: int = DEFAULT_CONFIRM,
-        mode_search: bool = False) -> dict:
+        mode_search: bool = True) -> dict:
     path, sel, target = CASES[case]
     caps = {"max_steps": max_steps} if max_steps else {}
     caps["confirm_checks"] = confirm
@@ -165,9 +165,9 @@ def main(argv=None):
                     help="the decimation's kept samples per cycle (default: FitConfig's, 400)")
     ap.add_argument("--confirm", choices=["1", "2", "both"], default=str(DEFAULT_CONFIRM),
                     help="checks in a row the stopping rule must hold at (default 2), or both")
-    ap.add_argument("--mode-search", choices=["off", "on", "both"], default="off",
-                    help="the burn-in's mode search (SamplerConfig.mode_search; default off), or "
-                         "both side by side")
+    ap.add_argument("--mode-search", choices=["off", "on", "both"], default="on",
+                    help="the burn-in's mode search (SamplerConfig.mode_search; default on, as "
+                         "the CLI's), or both side by side")
     ap.add_argument("--out", default=None, help="keep the fit outputs here (default: temporary)")
     a = ap.parse_args(argv)
     if a.temperatures > 1 and a.sampler != "chains":
@@ -200,16 +200,17 @@ def main(argv=None):
                   f"converged: {target_verdict(r)}, ratio {r['wall'] / r['target']:.2f})")
     w = {r["case"]: r["wall"] for r in results}
     tag = run_tag(a.force_offset, a.temperatures, a.samples_per_cycle,
-                  mode_search=a.mode_search == "on")
+                  mode_search=a.mode_search != "off")
     if a.mode_search == "both":
-        on = run_tag(a.force_offset, a.temperatures, a.samples_per_cycle, mode_search=True)
+        off = run_tag(a.force_offset, a.temperatures, a.samples_per_cycle, mode_search=False)
         for r in results:
-            if r["case"].endswith(on + ")"):
-                key = r["case"][: -len(on) - 1]
+            if r["case"].endswith(off + ")"):
+                key = r["case"][: -len(off) - 1]
                 print(f"{key}): with / without mode search wall time "
-                      f"{w[key + on + ')'] / w[key + tag + ')']:.2f}")
+                      f"{w[key + tag + ')'] / w[key + off + ')']:.2f}")
     if a.confirm == "both":
-        t1 = run_tag(a.force_offset, a.temperatures, a.samples_per_cycle, 1)
+        t1 = run_tag(a.force_offset, a.temperatures, a.samples_per_cycle, 1,
+                     mode_search=a.mode_search != "off")
         for c in cases:
             for at in ats:
                 for sm in sms:

@@ -266,9 +266,10 @@ def test_temperatures_option_reaches_the_sampler_config(tmp_path, monkeypatch):
     ("compare", "frictionuq.infer.compare.compare_campaign"),
 ])
 def test_mode_search_option_reaches_the_sampler_config(tmp_path, monkeypatch, command, target):
-    """--mode-search reaches the sampler config of fit, discover and compare (the library call
-    stubbed); the default is no search."""
-    for flag, want in (([], False), (["--mode-search"], True)):
+    """--mode-search and --no-mode-search reach the sampler config of fit, discover and compare
+    (the library call stubbed); the default is the config's own (None: search wherever the
+    independence move runs)."""
+    for flag, want in (([], None), (["--mode-search"], True), (["--no-mode-search"], False)):
         seen = _configs_seen(monkeypatch, target, [command, TWIN, "--out", str(tmp_path / "o")] + flag)
         assert seen and all(c.sampler.mode_search is want for c in seen), seen
 

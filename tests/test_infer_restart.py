@@ -183,7 +183,7 @@ def test_the_burn_in_after_a_restart_searches_every_state_kept_since_the_fit_beg
     def run(memory, search):
         rng = np.random.default_rng(5)
         state = 0.3 * rng.standard_normal((32, 3))
-        cfg = SamplerConfig(nwalkers=32, burn_steps=100, progress=False)
+        cfg = SamplerConfig(nwalkers=32, burn_steps=100, progress=False, mode_search=False)
         msgs = []
         _, p, steps = burn_in(target, state, cfg, seed=5, rng=rng, log=msgs.append,
                               memory=memory, search=search)

@@ -199,6 +199,15 @@ def test_run_walkers_is_refused_below_four_and_weight_above_one():
         SamplerConfig(mode_search=True, independence=False)
 
 
+def test_the_mode_search_is_on_by_default_wherever_the_independence_move_runs():
+    """mode_search None (the default): the burn-in searches when the independence move runs and
+    not without it (no error: only an explicit True needs the move); False turns it off."""
+    assert SamplerConfig().mode_search is None and SamplerConfig().searches_modes
+    assert not SamplerConfig(independence=False).searches_modes
+    assert not SamplerConfig(mode_search=False).searches_modes
+    assert SamplerConfig(mode_search=True).searches_modes
+
+
 def test_profile_sides_find_a_one_sided_kink_and_widen_the_start_ball_on_its_flat_side():
     """A posterior with a cliff just above the MAP in x0 (-1000 x0 nats) and a Gaussian of sd 1
     below it, while the Gauss-Newton sd says 0.01: the profile reaches all 64 sds below (half-width

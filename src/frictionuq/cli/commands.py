@@ -195,7 +195,8 @@ def _discover_notes(a, cfg) -> list[str]:
     if a.no_refit:
         given = [o for o, v in (("--max-steps", a.max_steps), ("--stored-run", a.stored_run),
                                 ("--temperatures", a.temperatures),
-                                ("--mode-search", a.mode_search)) if v is not None]
+                                ("--mode-search" if a.mode_search else "--no-mode-search",
+                                 a.mode_search)) if v is not None]
         if given:
             out.append(f"{', '.join(given)}: {'settings' if len(given) > 1 else 'a setting'} of "
                        "the refit's sampler, and --no-refit runs no refit: ignored")

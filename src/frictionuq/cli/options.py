@@ -51,11 +51,11 @@ def _add_selection(s, max_steps_help: str) -> None:
                    help="parallel tempering: L tempered copies of each of the stored run's chains "
                         "(default 1: none), for posteriors with separated modes; costs L times "
                         "the evaluations per step")
-    s.add_argument("--mode-search", action="store_true", default=None,
+    s.add_argument("--mode-search", action=argparse.BooleanOptionalAction, default=None,
                    help="give the stored run's independence proposal components on regions the "
                         "burn-in visited and the proposal misses (a second mode a chain would "
                         "stick in); each region found costs 5,000 posterior evaluations that "
-                        "shape its component")
+                        "shape its component (default: on; --no-mode-search turns it off)")
 
 
 def _add_prior(s, whose: str) -> None:

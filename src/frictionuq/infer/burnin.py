@@ -24,7 +24,8 @@
   inflated by 1.25^2; the last round's proposal is fixed for the whole stored run and kept in
   the HDF5 file) and the rest DE (35 %), DE gamma = 1 (5 %) and snooker (10 %). DE needs more
   than 2 x ndim walkers; the burn-in has max(32, 2 ndim + 4).
-* Mode search (cfg.mode_search, opt-in; infer.modes): every fifth step of every round is kept,
+* Mode search (cfg.mode_search; on by default since 2026-12-07, stop 87, wherever the
+  independence move runs: SamplerConfig.searches_modes; infer.modes): every fifth step of every round is kept,
   and after the last round the states where the posterior outweighs the last proposal by more
   than e^3 beyond the round's own top per cent get proposal components of their own, each
   refined by importance sampling (modes.refine). After a restart (infer.restart) the search
@@ -99,13 +100,13 @@ def burn_in(target, state: np.ndarray, cfg, seed: int, rng, log=None,
     log), each refined with draws of its own (modes.refine: posterior evaluations, no steps).
     `memory`: a list of (states, log-posteriors) pairs of the same target, to which each round's
     kept states are appended (the caller keeps them: infer.restart) and over which the search
-    runs, earlier runs' included; `search`: run the mode search (None: cfg.mode_search; it needs
+    runs, earlier runs' included; `search`: run the mode search (None: cfg.searches_modes; it needs
     the independence move)."""
     log = log or (lambda msg: None)
     nw, ndim = state.shape
     n_draw = max(nw, n_out or nw)
     proposal, prev, steps = None, -np.inf, 0
-    search = cfg.independence and (cfg.mode_search if search is None else search)
+    search = cfg.searches_modes if search is None else cfg.independence and search
     keeping = search or memory is not None
     memory = [] if memory is None else memory    # (states, log-posteriors) kept, for the search
     for rnd in range(max(cfg.burn_rounds, cfg.burn_max_rounds)):

@@ -68,6 +68,16 @@ costs rejected proposals (with weight 0.1 at most a tenth of the independence mo
 posterior that the t already covers no state is flagged and the stored run is the same, step for
 step, as without the search (tested).
 
+Default (since 2026-12-07, stop 87; opt-in before): on wherever the independence move runs
+(SamplerConfig.searches_modes; `--no-mode-search` or `mode_search = false` turns it off). Where the
+t covers the posterior it costs nothing: the BRFD twin level's fit is the same with and without
+it (74,052 evaluations, 3,000 stored steps, the same ESS and R-hat; `benchmarks/bench_fit.py
+--case twin --mode-search both`). Where it adds components it helped every real fit measured:
+dataset 2's 36 lb fit (R-hat 1.10-1.13 at 4,600 steps without it; with it converged at some
+seeds, R-hat 1.005-1.021 at the others) and arts-d1's 70 lb level (R-hat at 12,000 steps
+1.357 -> 1.271 on stop 83's code, 1.567 -> 1.186 on stop 86's); at 80 lb (stop 83) its burn-in
+never entered the missed region, no component, the same chain (docs/log-calibration.md).
+
 Limitations: the search sees only what the burn-in visited; a mode it never entered stays
 unseen (tempering, infer.tempering, is the tool that explores). Flagged states from two separate
 regions make one broad component first; the next round of the search then fits what it missed.

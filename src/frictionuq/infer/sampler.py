@@ -30,7 +30,8 @@ until the chain passes the convergence criteria.
     R-hat was made for. The random walk is proposal.RandomWalkMove, a displacement per walker
     (emcee's GaussianMove with a covariance matrix moves every walker by one shared vector).
     With `temperatures` L > 1 each chain has L - 1 tempered copies (infer.tempering; opt-in).
-    With `mode_search` (opt-in) the independence move proposes from a mixture: the burn-in's t
+    With `mode_search` (on by default since 2026-12-07) the independence move proposes from a
+    mixture when the search finds a region: the burn-in's t
     and components on regions the burn-in visited that the t misses (infer.modes), weight
     `mode_weight` (0.1) in all; each component costs 5,000 posterior evaluations that refine
     it by importance sampling (infer.modes).

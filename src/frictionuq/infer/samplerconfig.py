@@ -43,8 +43,10 @@ class SamplerConfig:
     temperatures: int = 1             # tempered copies of each chain (1: none; infer.tempering)
     temper_ratio: float | None = None  # the ladder's beta ratio; None: tempering.default_ratio
     start_profile: bool = True        # start ball from 1-D profiles (walkers.profile_sides)
-    mode_search: bool = False         # proposal components on regions the burn-in visited and
-                                      # its proposal misses (infer.modes; opt-in)
+    mode_search: bool | None = None   # proposal components on regions the burn-in visited and
+                                      # its proposal misses (infer.modes); None: wherever the
+                                      # independence move runs (the default since 2026-12-07,
+                                      # stop 87), True: on (needs it), False: off
     mode_weight: float = 0.1          # their total weight in the independence move
     n_map_restarts: int = 1           # burn-in restarts when a chain climbs above the MAP
                                       # (infer.restart; 0: none)
@@ -77,7 +79,7 @@ class SamplerConfig:
                              f"{self.independence_weight!r}")
         if not self.mode_weight < 1:
             raise InputError(f"sampler: mode_weight must be in (0, 1), got {self.mode_weight!r}")
-        if self.mode_search and not self.independence:
+        if self.mode_search is True and not self.independence:
             raise InputError("sampler: mode_search needs the independence move (its components "
                              "are the independence proposal's); set independence = true")
         if self.temper_ratio is not None and not self.temper_ratio < 1:
@@ -88,6 +90,12 @@ class SamplerConfig:
         if self.run_walkers < 4:
             raise InputError(f"sampler: run_walkers must be >= 4 (R-hat compares chains), got "
                              f"{self.run_walkers!r}")
+
+    @property
+    def searches_modes(self) -> bool:
+        """Whether the burn-in runs the mode search (mode_search None: wherever the independence
+        move runs, whose proposal its components join)."""
+        return self.independence and self.mode_search is not False
 
     def to_json(self) -> dict:
         return asdict(self)
