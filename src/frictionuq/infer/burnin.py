@@ -25,12 +25,13 @@
   the HDF5 file) and the rest DE (35 %), DE gamma = 1 (5 %) and snooker (10 %). DE needs more
   than 2 x ndim walkers; the burn-in has max(32, 2 ndim + 4).
 * Mode search (cfg.mode_search; on by default since 2026-12-07, stop 87, wherever the
-  independence move runs: SamplerConfig.searches_modes; infer.modes): every fifth step of every round is kept,
-  and after the last round the states where the posterior outweighs the last proposal by more
-  than e^3 beyond the round's own top per cent get proposal components of their own, each
-  refined by importance sampling (modes.refine). After a restart (infer.restart) the search
-  runs whatever cfg.mode_search says, over every state kept since the fit began: the first
-  burn-in's, the discarded stored run's and the new rounds' (`memory`).
+  independence move runs: SamplerConfig.searches_modes; infer.modes): every fifth step of
+  every round is kept, and after the last round the states where the posterior outweighs the
+  last proposal by more than e^3 beyond the round's own top per cent get proposal components of
+  their own, each refined by importance sampling (modes.refine). After a restart
+  (infer.restart) the search runs whatever cfg.mode_search says, over every state kept since
+  the fit began: the first burn-in's, the discarded stored run's and the new rounds'
+  (`memory`).
 * The stored run's moves (moves_for(..., stored=True)): with stored_run "chains" the
   independence move and a random walk per walker (proposal.RandomWalkMove), each walker a
   Markov chain of its own; with "ensemble" the independence move beside the DE moves above.
