@@ -130,6 +130,13 @@ def test_with_the_component_the_chains_sample_the_minor_mode_at_its_weight(seed=
     plain, r_plain = _stored_run(main, seed)
     assert r_plain > 1.05 and np.max(np.mean(plain[..., 0] > 3.0, axis=0)) > 0.25, r_plain
     assert r_mode < 1.01, r_mode
+    assert_minor_share(chain)
+
+
+def assert_minor_share(chain):
+    """The share of a stored chain's draws in the minor mode (x0 > 3) is its weight W2 within 5
+    standard errors of a proportion with the chain's effective sample size (false-alarm rate
+    below 1e-5)."""
     minor = chain[..., 0] > 3.0
     tau = max(1.0, float(emcee.autocorr.integrated_time(minor[..., None].astype(float),
                                                         quiet=True)[0]))

@@ -234,11 +234,11 @@ def test_profile_sides_find_a_one_sided_kink_and_widen_the_start_ball_on_its_fla
 
 
 def _stop_step(monkeypatch, rule_met: list[bool], confirm_checks: int) -> tuple[int, bool, list]:
-    """The stored run (sampler._run) on a 2-D Gaussian, chunks of 10 steps, with the convergence
+    """The stored run (storedrun.run_chunks) on a 2-D Gaussian, chunks of 10 steps, with the
     check scripted: at the k-th check R-hat is 1.0 where rule_met[k] and 1.05 elsewhere (tau
     stable, ESS ample): (the step it stopped at, converged, the log)."""
     import emcee
-    from frictionuq.infer import sampler as S
+    from frictionuq.infer import storedrun
     calls = iter(rule_met)
 
     def scripted(chain, cfg, space=None):
@@ -246,15 +246,15 @@ def _stop_step(monkeypatch, rule_met: list[bool], confirm_checks: int) -> tuple[
         return {"tau": np.full(2, 0.1), "tau_max": 0.1, "r_hat_max": r, "ess_min": 1000.0,
                 "r_hat": np.full(2, r)}
 
-    monkeypatch.setattr(S, "check", scripted)
+    monkeypatch.setattr(storedrun, "check", scripted)
     s = emcee.EnsembleSampler(8, 2, lambda x: -0.5 * np.sum(x * x, axis=1), vectorize=True)
     s.random_state = np.random.RandomState(1).get_state()
     cfg = SamplerConfig(chunk=10, min_steps=10, max_steps=10 * len(rule_met),
                         confirm_checks=confirm_checks, progress=False)
     sp = type("Sp", (), {"names": ["a", "b"]})()
     msgs = []
-    n, conv, found = S._run(s, np.random.default_rng(2).standard_normal((8, 2)), cfg, sp, 0, [],
-                            msgs.append)
+    n, conv, found = storedrun.run_chunks(s, np.random.default_rng(2).standard_normal((8, 2)), cfg,
+                                          sp, 0, [], msgs.append)
     assert found is None                   # no MAP check given: none run
     return n, conv, msgs
 
@@ -308,8 +308,8 @@ def test_the_replay_of_a_stored_chain_repeats_the_runs_own_checks():
     on a 2-D Gaussian that the rule accepts from the second check on, with confirm_checks so
     high that the run goes to its cap. Deterministic (seeded)."""
     import emcee
-    from frictionuq.infer import sampler as S
     from frictionuq.infer.convergence import replay
+    from frictionuq.infer.storedrun import run_chunks
 
     class Identity:
         names = ["a", "b"]
@@ -321,8 +321,8 @@ def test_the_replay_of_a_stored_chain_repeats_the_runs_own_checks():
                         tau_factor=5.0, tau_rtol=0.5, ess_min=50.0, r_hat_max=1.05,
                         progress=False)
     hist = []
-    n, conv, found = S._run(s, np.random.default_rng(4).standard_normal((16, 2)), cfg, Identity(),
-                            0, hist, lambda m: None)
+    n, conv, found = run_chunks(s, np.random.default_rng(4).standard_normal((16, 2)), cfg,
+                                Identity(), 0, hist, lambda m: None)
     assert (n, conv, found) == (2400, False, None)
     rows = replay(s.get_chain(), cfg, Identity())
     assert [r["steps"] for r in rows] == [h["steps"] for h in hist] == [800, 1200, 1600, 2000, 2400]

@@ -135,11 +135,7 @@ def burn_in(target, state: np.ndarray, cfg, seed: int, rng, log=None,
         if rnd + 1 >= cfg.burn_rounds and settled:
             break
     if search:
-        def density(x):             # the target's log-posterior column (its other ones: blobs)
-            if intr is not None:    # a Ctrl-C stops the refinement between two of its rounds
-                intr.check()
-            out = np.asarray(target(x), float)
-            return out[:, 0] if out.ndim == 2 else out
+        density = modes.log_density(target, intr)
         half = bs.get_chain()[cfg.burn_steps // 2:]
         proposal = modes.find_modes(proposal, np.concatenate([m[0] for m in memory]),
                                     np.concatenate([m[1] for m in memory]),

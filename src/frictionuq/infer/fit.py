@@ -250,6 +250,7 @@ def run_fit(spec: FitSpec, out_dir, campaign_name: str = "", resume: bool = True
                           "burn_in_phase_steps": res.burn_in_steps,
                           "mode_components": res.mode_components,
                           "map_restarts": res.map_restarts,
+                          "stored_searches": res.stored_searches,
                           "walkers": int(res.chain.shape[1]), "acceptance": res.acceptance,
                           "tau": dict(zip(space.names, map(float, res.tau))),
                           "converged_tau": res.converged_tau, "model_evaluations": res.n_evals,

@@ -79,7 +79,9 @@ seeds, R-hat 1.005-1.021 at the others) and arts-d1's 70 lb level (R-hat at 12,0
 never entered the missed region, no component, the same chain (docs/log-calibration.md).
 
 Limitations: the search sees only what the burn-in visited; a mode it never entered stays
-unseen (tempering, infer.tempering, is the tool that explores). Flagged states from two separate
+unseen (tempering, infer.tempering, is the tool that explores). A region that a stored chain
+enters later and sticks in gets its component from the stored run's own search (infer.stuck,
+since 2026-12-08), which reuses find_modes on the stored states. Flagged states from two separate
 regions make one broad component first; the next round of the search then fits what it missed.
 """
 from __future__ import annotations
@@ -134,27 +136,34 @@ def top(lw: np.ndarray) -> float:
 
 
 def find_modes(proposal: Proposal, states, log_prob, ref_states, ref_log_prob,
-               weight: float, names=None, log=None, density=None, seed=0) -> Proposal:
+               weight: float, names=None, log=None, density=None, seed=0,
+               min_states: int | None = None, min_kept: int = 0,
+               source: str = "burn-in") -> Proposal:
     """`proposal` with the components the search finds (module docstring), or unchanged.
     `states`, `log_prob`: the burn-in's kept states; `ref_*`: the last round's second half.
     `density(states)`: the log-posterior of a batch ((n, D) -> (n,)), with which each component
     is refined (`refine`, seeded by `seed` and its number); None: the component is the flagged
-    states' (`component`)."""
+    states' (`component`). A component needs `min_states` distinct flagged states (default
+    max(MIN_STATES, 2 D + 2)) and `min_kept` flagged states counted with repeats (the stored
+    run's search, infer.stuck, where a stuck chain repeats its states); `source`: what the
+    states are, for the log."""
     log = log or (lambda msg: None)
     states, log_prob = np.asarray(states, float), np.asarray(log_prob, float)
     d = states.shape[1]
+    need = max(MIN_STATES, 2 * d + 2) if min_states is None else int(min_states)
     current = proposal
     for _ in range(MAX_MODES):
         mask = flagged(states, log_prob, ref_states, ref_log_prob, current.move().logq)
         pool = np.unique(states[mask], axis=0)
-        if len(pool) < max(MIN_STATES, 2 * d + 2):
+        if len(pool) < need or mask.sum() < min_kept:
             if current is proposal:
-                log(f"mode search: {len(pool)} distinct burn-in states where the posterior "
-                    f"outweighs the proposal by more than e^{MARGIN:g} (a component needs "
-                    f"{max(MIN_STATES, 2 * d + 2)}): none added")
+                log(f"mode search: {len(pool)} distinct {source} states ({mask.sum()} with "
+                    f"repeats) where the posterior outweighs the proposal by more than "
+                    f"e^{MARGIN:g} (a component needs {need}"
+                    + (f" and {min_kept}" if min_kept else "") + "): none added")
             break
         k = len(current.modes) + 1
-        comp, how = component(pool, proposal), f"fitted to {len(pool)} distinct burn-in states"
+        comp, how = component(pool, proposal), f"fitted to {len(pool)} distinct {source} states"
         if density is not None:
             comp, alphas = refine(comp, _with_modes(proposal, current.modes, weight), density,
                                   np.random.default_rng([seed % (2**32), 1000 + k]))
@@ -168,6 +177,18 @@ def find_modes(proposal: Proposal, states, log_prob, ref_states, ref_log_prob,
             f"flagged: the posterior outweighs the proposal by more than e^{MARGIN:g}); "
             + _where(proposal, comp, names))
     return current
+
+
+def log_density(target, intr=None):
+    """The log-posterior of a batch ((n, D) -> (n,)) from the vectorized emcee target (its first
+    column; the others are blobs), for `refine`; with `intr`, a Ctrl-C stops the refinement
+    between two of its rounds."""
+    def density(x):
+        if intr is not None:
+            intr.check()
+        out = np.asarray(target(x), float)
+        return out[:, 0] if out.ndim == 2 else out
+    return density
 
 
 def refine(comp: Proposal, current: Proposal, density, rng) -> tuple[Proposal, list[float]]:
@@ -239,14 +260,17 @@ def tempered_weights(lw: np.ndarray, frac: float) -> tuple[np.ndarray, float]:
 
 
 def component(pool: np.ndarray, main: Proposal) -> Proposal:
-    """The t of a component: the flagged states' mean and correlations, each coordinate's width
-    their sd or half the main t's, whichever is larger (WIDEN). The flagged states are where the
-    walkers passed (on dataset 2, the start ball around the MAP), narrower than the region they
-    mark: d3's width among them was a fifth of the second mode's."""
+    """The t of a component: the flagged states' mean and correlations (none from fewer than
+    2 D + 2 states), each coordinate's width their sd or half the main t's, whichever is larger
+    (WIDEN). The flagged states are where the walkers passed (on dataset 2, the start ball
+    around the MAP), narrower than the region they mark: d3's width among them was a fifth of
+    the second mode's."""
     sd = pool.std(axis=0)
     main_sd = np.sqrt(np.diag(main.x_cov)) if main.x_cov is not None else main.x_width
     s = np.maximum(sd, WIDEN * main_sd)
-    r = np.corrcoef(pool.T) if np.all(sd > 0) else np.eye(pool.shape[1])
+    # a few states (a stuck chain's, infer.stuck) give no correlations worth keeping
+    enough = np.all(sd > 0) and len(pool) >= 2 * pool.shape[1] + 2
+    r = np.corrcoef(pool.T) if enough else np.eye(pool.shape[1])
     return Proposal.gaussian(pool.mean(axis=0), r * np.outer(s, s))
 
 

@@ -65,6 +65,7 @@ import numpy as np
 
 from .modes import flagged, keep
 from .optimize import polish
+from .storage import load_count, store_count
 
 #: nats above the MAP's log-posterior that a stored state must reach to restart the burn-in
 ABOVE_MAP = 3.0
@@ -199,14 +200,8 @@ def load_map(backend):
 
 def store_polishes(backend, n: int) -> None:
     """Count MapCheck's polishes in the chain's file (a resumed fit goes on from the count)."""
-    if backend is None:
-        return
-    with backend.open("a") as f:
-        f[backend.name].attrs["map_polishes"] = int(n)
+    store_count(backend, "map_polishes", n)
 
 
 def load_polishes(backend) -> int:
-    if backend is None:
-        return 0
-    with backend.open() as f:
-        return int(f[backend.name].attrs.get("map_polishes", 0))
+    return load_count(backend, "map_polishes")

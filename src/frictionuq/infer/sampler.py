@@ -73,6 +73,15 @@ until the chain passes the convergence criteria.
   R-hat grew to 1.833 in 100,000 steps; with the check, seed 2 restarted after 1,500 steps and
   converged after 5,500 (355 s), its chains 82-93 % in that region; seed 1's chains entered it
   only from step 7,500 on, 2 nats below the MAP, and the polish restarted from there.
+* The stored run's mode search (`n_stored_searches`, default 2, with the mode search;
+  infer.stuck): at every chunk, when the cold chains' kept states of the chunk hold 50 or more
+  where the stored run's proposal underweights the posterior by e^3 beyond its bulk (a chain
+  stuck there 250 steps), the search of infer.modes runs over the stored run's states; if it
+  adds a component, the stored steps are discarded (counted with the burn-in phase) and the
+  stored run starts again from the chains' positions with the new mixture. Real arts-d1
+  (2026-12-08, stop 88): chains of the 25, 35 and 80 lb levels sat for hundreds to thousands
+  of steps in regions the burn-in never visited (80 lb, seed 3: the corner where k2 sits at
+  its lower bound, 7,000 steps, R-hat 1.110 at the cap).
 * Storage (storage.py): emcee's HDF5 backend (in u coordinates), written every step: an
   interrupted run resumes from its last step (random state included) with `resume=True`, and
   replays the stored chain's checks first (convergence.replay), so that it checks on the same
@@ -90,13 +99,16 @@ import emcee
 import numpy as np
 
 from ..interrupts import Interrupts, interrupts
-from .burnin import burn_in, independent, moves_for, progress_bar, run_steps
-from .convergence import autocorr_time, check, replay, rule_met, thinning
+from .burnin import burn_in, independent, moves_for
+from .convergence import autocorr_time, thinning
 from .likelihood import LogPosterior, UnboundedPosterior
 from .localfit import gauss_newton_cov
 from .optimize import find_map, polish
+from .proposal import Proposal
 from .restart import MapCheck, burn_in_map, carried, load_map, load_polishes, store_map
-from .tempering import default_ratio, ladder, swap_rates, tempered_moves
+from .stuck import StuckCheck, load_searches, store_searches
+from .storedrun import cold_walkers, run_chunks
+from .tempering import default_ratio, ladder, tempered_moves
 from .storage import load_account, load_proposal, open_backend, store_account, store_proposal
 from .priors import RecordScales
 from .samplerconfig import STORED_RUNS, SamplerConfig  # noqa: F401 (the package's import path)
@@ -128,6 +140,7 @@ class SampleResult:
     noise_stats: np.ndarray | None = None
     mode_components: int = 0     # components the mode search added to the independence move
     map_restarts: int = 0        # burn-in restarts from a higher MAP the chains found (infer.restart)
+    stored_searches: int = 0     # stored runs started again with new components (infer.stuck)
 
 
 def _nwalkers(cfg: SamplerConfig, ndim: int) -> int:
@@ -169,8 +182,7 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
     stored_map = load_map(backend) if resumed else None
     if stored_map is not None:   # polished after the burn-in, or a restart (infer.restart)
         theta_map, lp_map, restarts = stored_map
-        log(f"MAP kept with the stored chain (polished after its burn-in; restarts before it: "
-            f"{restarts}; infer.restart)")
+        log(f"MAP kept with the stored chain (restarts before it: {restarts}; infer.restart)")
     log(f"MAP log-posterior {lp_map:.6g} nats")
     # from here on a Ctrl-C is only noted and raised at the next step or chunk (run_steps): one
     # raised between chunks could land in a finaliser, where Python prints it and goes on
@@ -182,9 +194,13 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
         log(f"resuming from stored step {resumed}")
     # the states kept since the fit began (every fifth step): a restart's mode search reads them
     memory = [] if cfg.independence and cfg.n_map_restarts > 0 else None
+    searches = load_searches(backend) if resumed else 0
+    carry = None     # (positions, proposal) of a stored run started again (infer.stuck)
     while True:
         state = proposal = None
-        if not resumed:
+        if carry is not None:
+            (state, proposal), carry = carry, None
+        elif not resumed:
             state, proposal, steps = _burn_in(logpost, target, theta_map, lp_map, cfg, seed, rng,
                                               log, intr, nw, nrun, memory, restarts > 0)
             account["burn_in_steps"] += steps
@@ -200,7 +216,7 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
         else:
             store_proposal(backend, proposal)
         sampler, moves = _stored_sampler(target, backend, proposal, cfg, seed, nrun, ndim, resumed,
-                                         log)
+                                         log, searches)
         history = []
         before = dict(account)
         if backend is not None:
@@ -209,9 +225,13 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
         if restarts < cfg.n_map_restarts:
             map_check = MapCheck(logpost, lp_map, proposal.move().logq if cfg.independence else None,
                                  load_polishes(backend) if resumed else 0, backend, log)
+        stuck_check = None
+        if cfg.searches_modes and searches < cfg.n_stored_searches:
+            stuck_check = StuckCheck(proposal, target, cfg.mode_weight, searches,
+                                     cfg.n_stored_searches, seed, sp.names, log, intr)
         try:
-            n_done, converged, found = _run(sampler, state, cfg, sp, resumed, history, log, intr,
-                                            moves, map_check)
+            n_done, converged, found = run_chunks(sampler, state, cfg, sp, resumed, history, log, intr,
+                                            moves, map_check, stuck_check)
         finally:
             if backend is not None:
                 backend.close()
@@ -222,6 +242,22 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
                           __version__, seed)
         if found is None:
             break
+        if memory is not None:
+            memory.append(carried(sampler, cold_walkers(cfg, nrun)))
+        account["burn_in_steps"] += n_done
+        if isinstance(found, Proposal):
+            # chains stuck where the proposal underweights: the stored run again, with the new
+            # components, from the chains' positions (infer.stuck)
+            searches += 1
+            log(f"step {n_done}: {len(found.modes) - len(proposal.modes)} proposal component(s) "
+                f"added (stored-run mode search {searches} of {cfg.n_stored_searches}; "
+                f"infer.stuck); the {n_done} stored steps are discarded (counted with the "
+                f"burn-in phase) and the stored run starts again from its chains' positions")
+            carry = (np.array(sampler.get_last_sample().coords), found)
+            backend, resumed = open_backend(backend_path, nrun, ndim, False, log, key=run_key)
+            store_map(backend, theta_map, lp_map, restarts)
+            store_searches(backend, searches)
+            continue
         # a point above the MAP: the burn-in again from there (infer.restart)
         theta_best, lp_best, how = found
         theta_new, lp_new = polish(logpost, theta_best, lp_best)
@@ -232,11 +268,9 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
             f"{n_done} stored steps are discarded (counted with the burn-in phase) and the burn-in "
             f"starts again at the new MAP, its mode search given every state kept so far")
         theta_map, lp_map = theta_new, lp_new
-        if memory is not None:
-            memory.append(carried(sampler, _cold(cfg, nrun)))
-        account["burn_in_steps"] += n_done
         backend, resumed = open_backend(backend_path, nrun, ndim, False, log, key=run_key)
         store_map(backend, theta_map, lp_map, restarts)
+        store_searches(backend, searches)
     intr.check()              # one noted after the last chunk: the chain is stored, resumable
     res = _result(sampler, cfg, sp, n_done, converged, theta_map, lp_map, logpost, t0,
                   account["burn_in_steps"], history, map_info["start"])
@@ -246,6 +280,7 @@ def _sample(logpost, scales, seed, backend_path, cfg, resume, log, start, run_ke
     res.resumed_from = list(account["resumed_from"])
     res.mode_components = len(proposal.modes) if proposal is not None else 0
     res.map_restarts = restarts
+    res.stored_searches = searches
     return res
 
 
@@ -268,8 +303,9 @@ def _burn_in(logpost, target, theta_map, lp_map, cfg, seed, rng, log, intr, nw, 
     return state[:nrun], proposal, steps
 
 
-def _stored_sampler(target, backend, proposal, cfg, seed, nrun, ndim, resumed, log):
-    """The stored run's emcee sampler on `backend` and its moves (with tempering, wrapped)."""
+def _stored_sampler(target, backend, proposal, cfg, seed, nrun, ndim, resumed, log, searches=0):
+    """The stored run's emcee sampler on `backend` and its moves (with tempering, wrapped); its
+    random state seeded by `seed` (and, after stored-run searches, their count: infer.stuck)."""
     moves = moves_for(cfg, proposal, stored=True)
     if cfg.temperatures > 1:
         betas = ladder(cfg.temperatures, cfg.temper_ratio or default_ratio(ndim))
@@ -278,86 +314,15 @@ def _stored_sampler(target, backend, proposal, cfg, seed, nrun, ndim, resumed, l
     sampler = emcee.EnsembleSampler(nrun, ndim, target, vectorize=True, moves=moves,
                                     backend=backend)
     if not resumed:
-        sampler.random_state = np.random.RandomState(seed % (2**32)).get_state()
+        key = seed % (2**32) if not searches else [seed % (2**32), searches]
+        sampler.random_state = np.random.RandomState(key).get_state()
     return sampler, moves
-
-
-def _cold(cfg: SamplerConfig, n_walkers: int) -> slice:
-    """The stored run's walkers that sample the posterior: all, or with tempering the first
-    run_walkers (level beta = 1; infer.tempering)."""
-    return slice(0, cfg.run_walkers if cfg.temperatures > 1 else n_walkers)
-
-
-def _run(sampler, state, cfg, sp, n_done, history, log, intr=None, moves=(), map_check=None):
-    """The stored run in chunks until the convergence criteria or the step cap. The checks fall
-    on multiples of `chunk` stored steps; a resumed run (n_done > 0) first replays the stored
-    chain's checks (convergence.replay) to restore the rule's state (the last max tau and the
-    checks in a row it held at), so that it checks and stops where the uninterrupted run would.
-    With `map_check` (restart.MapCheck), each chunk's states are also checked against the MAP:
-    returns (steps, converged, None), or (steps, False, (theta, log-posterior, how)) at once when
-    the check finds a point above it."""
-    cold = _cold(cfg, sampler.nwalkers)
-    prev_tau, passes = _replayed(sampler, cfg, sp, cold, n_done, log)
-    converged = passes >= cfg.confirm_checks
-    while n_done < cfg.max_steps and not converged:
-        n = min(cfg.chunk - n_done % cfg.chunk, cfg.max_steps - n_done)
-        run_steps(sampler, state, n, progress=progress_bar(cfg), intr=intr)
-        state = None
-        chunk_start, n_done = n_done, int(sampler.iteration)
-        found = map_check(sampler, cold, chunk_start) if map_check is not None else None
-        if found is not None:
-            return n_done, False, found
-        if n_done < cfg.min_steps:
-            continue
-        burn = int(n_done * cfg.discard_fraction)
-        c = check(sampler.get_chain(discard=burn)[:, cold], cfg, sp)
-        h = {"steps": n_done, "tau_max": c["tau_max"],
-             "acceptance": float(np.mean(sampler.acceptance_fraction[cold])),
-             "r_hat_max": c["r_hat_max"], "ess_min": c["ess_min"],
-             "worst": sp.names[int(np.argmax(c["r_hat"]))]}
-        rates = swap_rates(moves)
-        if rates is not None:
-            h["swap_acceptance"] = [float(r) for r in rates]
-        history.append(h)
-        log(f"step {n_done}: max tau {c['tau_max']:.1f} steps, R-hat max {h['r_hat_max']:.3f} "
-            f"({h['worst']}), ESS min {h['ess_min']:.0f}, acceptance {h['acceptance']:.2f}"
-            + ("" if rates is None else ", swaps accepted " + " / ".join(f"{r:.2f}" for r in rates)))
-        met = rule_met(c, prev_tau, n_done - burn, cfg)
-        prev_tau = c["tau_max"]
-        passes = passes + 1 if met else 0
-        h["rule_met"] = bool(met)
-        if met and passes < cfg.confirm_checks and n_done < cfg.max_steps:
-            log(f"step {n_done}: stopping rule met ({passes} of {cfg.confirm_checks} checks in a "
-                f"row); running {min(cfg.chunk, cfg.max_steps - n_done)} more steps to confirm")
-        converged = passes >= cfg.confirm_checks
-    return n_done, converged, None
-
-
-def _replayed(sampler, cfg, sp, cold, n_done, log) -> tuple[float | None, int]:
-    """The stopping rule's state after the first `n_done` stored steps (a resumed run): the max
-    tau of the last check and the checks in a row the rule held at, replayed on the stored
-    chain; (None, 0) for a fresh run. Only the last confirm_checks + 1 checks are replayed: the
-    first of them gives the previous tau, and a longer run of passes than confirm_checks
-    changes nothing (a long chain has hundreds of checks, each a few tenths of a second)."""
-    if not n_done:
-        return None, 0
-    last_check = n_done - n_done % cfg.chunk
-    rows = replay(sampler.get_chain()[:n_done, cold], cfg, sp,
-                  from_step=last_check - cfg.confirm_checks * cfg.chunk)
-    if not rows:
-        return None, 0
-    last = rows[-1]
-    log(f"stopping rule replayed on the {n_done} stored steps ({len(rows)} checks up to step "
-        f"{last['steps']}: max tau {last['tau_max']:.1f} steps, R-hat max "
-        f"{last['r_hat_max']:.3f}, ESS min {last['ess_min']:.0f}); held at the last "
-        f"{last['in_a_row']} in a row")
-    return last["tau_max"], last["in_a_row"]
 
 
 def _result(sampler, cfg, sp, n_done, converged, theta_map, lp_map, logpost, t0, burn_in_steps,
             history, map_start: str = "search") -> SampleResult:
     ndim = sp.ndim
-    cold = _cold(cfg, sampler.nwalkers)
+    cold = cold_walkers(cfg, sampler.nwalkers)
     burn = int(n_done * cfg.discard_fraction)
     tau = autocorr_time(sampler.get_chain(discard=burn)[:, cold])
     thin = thinning(cfg, tau)

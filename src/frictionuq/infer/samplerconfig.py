@@ -50,6 +50,9 @@ class SamplerConfig:
     mode_weight: float = 0.1          # their total weight in the independence move
     n_map_restarts: int = 1           # burn-in restarts when a chain climbs above the MAP
                                       # (infer.restart; 0: none)
+    n_stored_searches: int = 2        # stored runs started again with proposal components where
+                                      # stored chains stick (infer.stuck; with the mode search;
+                                      # 0: none)
     thin_output: int | None = None    # default: about tau/4
     progress: bool | None = None      # default: on a terminal
 

@@ -180,6 +180,23 @@ def load_proposal(backend):
         return Proposal.from_attrs(a)
 
 
+def store_count(backend, key: str, n: int) -> None:
+    """Keep one of the fit's counts (restart's polishes, stuck's searches) in the chain file's
+    attributes, so that a resumed fit goes on from it; no backend: nothing kept."""
+    if backend is None:
+        return
+    with backend.open("a") as f:
+        f[backend.name].attrs[key] = int(n)
+
+
+def load_count(backend, key: str) -> int:
+    """A count kept by store_count (0 when none was kept)."""
+    if backend is None:
+        return 0
+    with backend.open() as f:
+        return int(f[backend.name].attrs.get(key, 0))
+
+
 def load_account(backend) -> dict:
     """The fit's bookkeeping over the sessions that wrote the chain so far (a resumed fit
     continues it): {burn_in_steps (the burn-in phase, run once before the stored run),

@@ -131,8 +131,12 @@ def _stored_run(rec: dict, smp: dict) -> str:
         design = "ensemble" if cfg["run_walkers"] is None else "chains"
     n = smp.get("walkers", DASH)
     k = int(smp.get("mode_components") or 0)
+    again = int(smp.get("stored_searches") or 0)
+    where = "the burn-in" if not again else (
+        f"the burn-in and the stored run (started again {again} time{'s' if again > 1 else ''} "
+        f"where chains stuck)")
     modes = "" if not k else (f"; the independence proposal a mixture with {k} mode "
-                              f"component{'s' if k > 1 else ''} found in the burn-in")
+                              f"component{'s' if k > 1 else ''} found in {where}")
     if design == "chains":
         L = int(cfg.get("temperatures") or 1)
         tempered = "" if L < 2 else (f", each with {L - 1} tempered copies (parallel tempering; "
