@@ -34,6 +34,15 @@ the chain's file, so that a resumed fit searches where the uninterrupted one wou
 Exactness: the stored run that is kept has one proposal from its first step; the steps that
 shaped it are discarded, as a burn-in's are. Where no chunk has STUCK_STATES flagged states the
 stored run is the same, step for step, as without this check.
+
+Limitation (measured, 80 lb at seeds 1-4, stop 88): every seed now reports converged, but seed
+3's fit is a false convergence. Its search came at step 500 (a chain in the k2 corner), and the
+restarted chains never entered the region the multi-start MAP search misses (sigma0 at its lower
+bound, d3 near 0, about 88 % of the mass: infer.restart), which on stop 87's code a chain of
+the same seed had reached within 1,000 steps by chance; they sampled the other region alone (d3
+mean 8.1 mm against 1.1 mm at seeds 1, 2 and 4). This check only changes which random path the
+chains take; a region that no chain and no burn-in visits stays unseen, and the remedy for that
+one is a MAP search that finds it.
 """
 from __future__ import annotations
 
